@@ -1,0 +1,3 @@
+fn main() {
+    println!("sahkd: command line not written yet");
+}

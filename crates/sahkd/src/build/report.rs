@@ -1,0 +1,45 @@
+//! What a build reports about itself, beside the tree.
+
+use serde::Serialize;
+
+/// Timings and per-level profile of one build.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct BuildReport {
+    /// Wall time of the whole build, pre-sort included.
+    pub build_ms: f64,
+    /// Wall time of the one-off sort of the primitives (0 for builders that do not sort).
+    pub presort_ms: f64,
+    /// Peak bytes of the builder's working arrays (not counting the finished tree).
+    pub peak_working_bytes: usize,
+    /// One entry per tree level, for the breadth-first builders.
+    pub levels: Vec<LevelReport>,
+}
+
+/// One level of a breadth-first build.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct LevelReport {
+    pub depth: u32,
+    /// Nodes of the level, split or not.
+    pub nodes: usize,
+    /// Nodes of the level that became leaves.
+    pub leaves: usize,
+    /// Candidate planes priced.
+    pub candidates: usize,
+    /// Primitive references held by the level's nodes.
+    pub references: usize,
+    /// Space-tree counting only: tree nodes visited over all candidates.
+    pub walk_steps: u64,
+    /// Space-tree counting only: primitives cut by the candidates, summed (the paper's NP).
+    pub cut_primitives: u64,
+    pub ms: PhaseTimes,
+}
+
+/// Wall time of each phase of a level, in milliseconds.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct PhaseTimes {
+    pub candidates: f64,
+    pub space_trees: f64,
+    pub counting: f64,
+    pub decision: f64,
+    pub partition: f64,
+}

@@ -1,0 +1,160 @@
+//! Clipping a triangle to a box: the "perfect splits" of Wald & Havran and the overlap test
+//! of `validate`.
+//!
+//! The clipped bounds are a pure function of the original triangle and the box (never of an
+//! earlier clipped polygon), so every builder that clips gets bit-identical boxes.
+
+use crate::geometry::{Aabb, Triangle, Vec3};
+
+/// At most 3 + 6 vertices survive clipping a triangle by six planes.
+const MAX_VERTS: usize = 9;
+
+/// Bounds of the part of `tri` inside the closed box `b`, or an empty box when the triangle
+/// misses it. Computed in f64 and rounded outwards to f32, then limited to `b`.
+pub fn clipped_bounds(tri: &Triangle, b: &Aabb) -> Aabb {
+    let mut poly = [[0f64; 3]; MAX_VERTS];
+    let mut n = 3;
+    for (k, v) in tri.iter().enumerate() {
+        poly[k] = v.0.map(|c| c as f64);
+    }
+    let mut next = [[0f64; 3]; MAX_VERTS];
+    for axis in 0..3 {
+        for (bound, keep_below) in [(b.lo[axis] as f64, false), (b.hi[axis] as f64, true)] {
+            let inside = |p: &[f64; 3]| {
+                if keep_below {
+                    p[axis] <= bound
+                } else {
+                    p[axis] >= bound
+                }
+            };
+            let mut m = 0;
+            for i in 0..n {
+                let (p, q) = (poly[i], poly[(i + 1) % n]);
+                let (pin, qin) = (inside(&p), inside(&q));
+                if pin {
+                    next[m] = p;
+                    m += 1;
+                }
+                if pin != qin && m < MAX_VERTS {
+                    let t = (bound - p[axis]) / (q[axis] - p[axis]);
+                    let mut x = [0f64; 3];
+                    for a in 0..3 {
+                        x[a] = p[a] + t * (q[a] - p[a]);
+                    }
+                    x[axis] = bound;
+                    next[m] = x;
+                    m += 1;
+                }
+            }
+            n = m;
+            if n == 0 {
+                return Aabb::EMPTY;
+            }
+            std::mem::swap(&mut poly, &mut next);
+        }
+    }
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in &poly[..n] {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let out = Aabb::new(Vec3(lo.map(round_down)), Vec3(hi.map(round_up)));
+    out.intersection(*b)
+}
+
+fn round_down(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) > x {
+        f.next_down()
+    } else {
+        f
+    }
+}
+
+fn round_up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) < x {
+        f.next_up()
+    } else {
+        f
+    }
+}
+
+/// True when the triangle has a point inside the closed box.
+pub fn overlaps(tri: &Triangle, b: &Aabb) -> bool {
+    !b.is_empty() && !clipped_bounds(tri, b).is_empty()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Triangle {
+        [Vec3(a), Vec3(b), Vec3(c)]
+    }
+
+    #[test]
+    fn clipping_a_diagonal_triangle_to_a_half_box() {
+        // The triangle (0,0,0) (2,0,0) (0,2,0) clipped to x <= 1 spans x 0..1, y 0..2.
+        let t = tri([0.0; 3], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]);
+        let b = Aabb::new(Vec3::splat(-1.0), Vec3::new(1.0, 3.0, 1.0));
+        let c = clipped_bounds(&t, &b);
+        assert_eq!(c, Aabb::new(Vec3::splat(0.0), Vec3::new(1.0, 2.0, 0.0)));
+        // Clipped to x >= 1.5 it spans x 1.5..2, y 0..0.5.
+        let b = Aabb::new(Vec3::new(1.5, -1.0, -1.0), Vec3::splat(3.0));
+        let c = clipped_bounds(&t, &b);
+        assert_eq!(c.lo, Vec3::new(1.5, 0.0, 0.0));
+        assert_eq!(c.hi, Vec3::new(2.0, 0.5, 0.0));
+    }
+
+    #[test]
+    fn a_triangle_beside_the_box_is_clipped_away() {
+        let t = tri([0.0; 3], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]);
+        // The box's corner (1.5, 1.5) lies beyond the hypotenuse x + y = 2.
+        let b = Aabb::new(Vec3::new(1.5, 1.5, -1.0), Vec3::new(3.0, 3.0, 1.0));
+        assert!(clipped_bounds(&t, &b).is_empty());
+        assert!(!overlaps(&t, &b));
+        let b = Aabb::new(Vec3::new(0.9, 0.9, -1.0), Vec3::new(3.0, 3.0, 1.0));
+        assert!(overlaps(&t, &b));
+    }
+
+    #[test]
+    fn clipped_bounds_always_contain_the_exact_part_inside() {
+        // Random triangles against random boxes: sample points of the triangle inside the box
+        // must lie inside the clipped bounds.
+        let mut seed = 12345u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+        };
+        for _ in 0..2000 {
+            let t = tri(
+                [rnd(), rnd(), rnd()],
+                [rnd(), rnd(), rnd()],
+                [rnd(), rnd(), rnd()],
+            );
+            let (p, q) = (Vec3([rnd(), rnd(), rnd()]), Vec3([rnd(), rnd(), rnd()]));
+            let b = Aabb::new(p.min(q), p.max(q));
+            let c = clipped_bounds(&t, &b);
+            for i in 0..=10 {
+                for j in 0..=(10 - i) {
+                    let (u, v) = (i as f32 / 10.0, j as f32 / 10.0);
+                    let x = t[0] * (1.0 - u - v) + t[1] * u + t[2] * v;
+                    let inside = (0..3).all(|a| x[a] >= b.lo[a] && x[a] <= b.hi[a]);
+                    if inside {
+                        let slack = 1e-5;
+                        assert!(
+                            (0..3).all(|a| x[a] >= c.lo[a] - slack && x[a] <= c.hi[a] + slack),
+                            "{x:?} outside {c:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,145 @@
+//! The surface area heuristic, in one place for every builder.
+//!
+//! Every builder prices a split with [`CostModel::split_cost`] and a leaf with
+//! [`CostModel::leaf_cost`]; the same inputs give bit-identical costs in every builder, which
+//! is what lets the level builder and the sweep builder agree on the tree they pick.
+
+use crate::geometry::Aabb;
+use serde::{Deserialize, Serialize};
+
+/// The deepest any tree may go; traversal stacks are sized from it.
+pub const MAX_DEPTH_CAP: u32 = 60;
+
+/// SAH constants and termination rules.
+///
+/// Defaults are those of Wald & Havran 2006: `K_T = 15`, `K_I = 20`, and a bonus factor of
+/// 0.8 on a split that leaves one side empty. The greedy cost of splitting node `V` at `p` is
+/// `lambda * (K_T + K_I * (SA(V_L) * N_L + SA(V_R) * N_R) / SA(V))`, against `K_I * N` for
+/// keeping `V` a leaf.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CostModel {
+    /// `K_T`: the cost of stepping through one interior node.
+    pub traversal: f32,
+    /// `K_I`: the cost of one ray/triangle test.
+    pub intersection: f32,
+    /// `lambda` applied when one side of a split holds no primitive (1 disables the bonus).
+    pub empty_bonus: f32,
+    /// A node with this many primitives or fewer becomes a leaf without being priced.
+    pub leaf_size: u32,
+    /// Depth limit; `None` means `8 + 1.3 * log2(N)`, rounded. Always capped at
+    /// [`MAX_DEPTH_CAP`].
+    pub max_depth: Option<u32>,
+    /// Reference budget: a build stops splitting once the references reach this many times
+    /// the triangle count (plus a small constant), so that heavily overlapping input cannot
+    /// exhaust memory.
+    pub max_duplication: f32,
+}
+
+impl Default for CostModel {
+    fn default() -> Self {
+        CostModel {
+            traversal: 15.0,
+            intersection: 20.0,
+            empty_bonus: 0.8,
+            leaf_size: 1,
+            max_depth: None,
+            max_duplication: 16.0,
+        }
+    }
+}
+
+impl CostModel {
+    /// The depth limit for a scene of `n` triangles.
+    pub fn max_depth_for(&self, n: usize) -> u32 {
+        let default = || (8.0 + 1.3 * (n.max(1) as f64).log2()).round() as u32;
+        self.max_depth.unwrap_or_else(default).min(MAX_DEPTH_CAP)
+    }
+
+    /// The most references a build of `n` triangles may produce.
+    pub fn reference_budget(&self, n: usize) -> usize {
+        (n as f64 * self.max_duplication.max(1.0) as f64) as usize + 1024
+    }
+
+    /// The cost of keeping `n` primitives in a leaf.
+    #[inline]
+    pub fn leaf_cost(&self, n: u32) -> f32 {
+        self.intersection * n as f32
+    }
+
+    /// The cost of splitting `node` at `axis = pos` with `nl` primitives left and `nr` right.
+    ///
+    /// Only planes strictly inside the node are meaningful; for any other plane, or a node
+    /// without area, the cost is infinite so that no builder ever picks it.
+    #[inline]
+    pub fn split_cost(&self, node: &Aabb, axis: usize, pos: f32, nl: u32, nr: u32) -> f32 {
+        let lo = node.lo[axis];
+        let hi = node.hi[axis];
+        if !(pos > lo && pos < hi) {
+            return f32::INFINITY;
+        }
+        let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+        let db = node.hi[b] - node.lo[b];
+        let dc = node.hi[c] - node.lo[c];
+        // Half surface areas: the factor 2 cancels in the ratio.
+        let face = db * dc;
+        let perimeter = db + dc;
+        let area = face + (hi - lo) * perimeter;
+        if !(area > 0.0) {
+            return f32::INFINITY;
+        }
+        let area_l = face + (pos - lo) * perimeter;
+        let area_r = face + (hi - pos) * perimeter;
+        let bonus = if nl == 0 || nr == 0 {
+            self.empty_bonus
+        } else {
+            1.0
+        };
+        bonus
+            * (self.traversal
+                + self.intersection * (area_l * nl as f32 + area_r * nr as f32) / area)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Vec3;
+
+    fn unit_cube() -> Aabb {
+        Aabb::new(Vec3::splat(0.0), Vec3::splat(1.0))
+    }
+
+    #[test]
+    fn split_cost_matches_hand_computation() {
+        // Unit cube split at x = 0.25: half-areas 1 + 0.25*2 = 1.5, 1 + 0.75*2 = 2.5, 3.
+        let c = CostModel::default();
+        let cost = c.split_cost(&unit_cube(), 0, 0.25, 4, 6);
+        let expected = 15.0 + 20.0 * (1.5 * 4.0 + 2.5 * 6.0) / 3.0;
+        assert!((cost - expected).abs() < 1e-4, "{cost} vs {expected}");
+        let empty = c.split_cost(&unit_cube(), 1, 0.5, 0, 3);
+        let expected = 0.8 * (15.0 + 20.0 * (2.0 * 3.0) / 3.0);
+        assert!((empty - expected).abs() < 1e-4, "{empty} vs {expected}");
+    }
+
+    #[test]
+    fn planes_on_or_outside_the_boundary_are_never_chosen() {
+        let c = CostModel::default();
+        for pos in [0.0, 1.0, -0.5, 2.0, f32::NAN] {
+            assert_eq!(c.split_cost(&unit_cube(), 2, pos, 1, 1), f32::INFINITY);
+        }
+        let line = Aabb::new(Vec3::splat(0.0), Vec3::new(1.0, 0.0, 0.0));
+        assert_eq!(c.split_cost(&line, 0, 0.5, 1, 1), f32::INFINITY);
+    }
+
+    #[test]
+    fn default_depth_follows_pbrt_rule_and_is_capped() {
+        let c = CostModel::default();
+        assert_eq!(c.max_depth_for(1024), 21); // 8 + 1.3 * 10 = 21
+        assert_eq!(c.max_depth_for(0), 8);
+        let deep = CostModel {
+            max_depth: Some(1000),
+            ..c
+        };
+        assert_eq!(deep.max_depth_for(10), MAX_DEPTH_CAP);
+    }
+}

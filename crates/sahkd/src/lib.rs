@@ -1,0 +1,35 @@
+//! # sahkd: SAH kd-trees for ray tracing, built fast
+//!
+//! ```
+//! use sahkd::{build, BuildOptions, Mesh, Ray, Vec3};
+//!
+//! // Two triangles forming the unit square in the plane z = 1.
+//! let mesh = Mesh {
+//!     vertices: vec![[0., 0., 1.], [1., 0., 1.], [1., 1., 1.], [0., 1., 1.]],
+//!     triangles: vec![[0, 1, 2], [0, 2, 3]],
+//! };
+//! let built = build(&mesh, &BuildOptions::default()).unwrap();
+//! let tree = built.tree;
+//! let hit = tree.intersect(&Ray::new(Vec3::new(0.25, 0.5, 0.), Vec3::new(0., 0., 1.))).unwrap();
+//! assert_eq!((hit.t, hit.prim), (1.0, 1));
+//! assert!(!tree.occluded(&Ray::new(Vec3::new(2., 2., 0.), Vec3::new(0., 0., 1.))));
+//! tree.validate().unwrap();
+//! ```
+
+pub mod build;
+pub mod clip;
+pub mod cost;
+pub mod geometry;
+pub mod mesh;
+pub mod scenes;
+pub mod trace;
+pub mod tree;
+
+pub use build::{
+    build, build_triangles, Algorithm, Axes, Build, BuildOptions, BuildReport, Counting,
+};
+pub use cost::CostModel;
+pub use geometry::{Aabb, Triangle, Vec3};
+pub use mesh::{Mesh, MeshError};
+pub use trace::{Hit, Ray, TraceStats};
+pub use tree::{KdTree, Node, TreeStats};
