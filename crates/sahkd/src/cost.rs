@@ -78,17 +78,24 @@ impl CostModel {
             return f32::INFINITY;
         }
         let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
-        let db = node.hi[b] - node.lo[b];
-        let dc = node.hi[c] - node.lo[c];
+        // Extents are scaled by the largest one, so that scenes near 1e30 do not overflow
+        // the products to infinity (and the ratio to NaN).
+        let d = [hi - lo, node.hi[b] - node.lo[b], node.hi[c] - node.lo[c]];
+        let scale = d[0].max(d[1]).max(d[2]);
+        if !(scale > 0.0 && scale.is_finite()) {
+            return f32::INFINITY;
+        }
+        let inv = 1.0 / scale;
+        let (db, dc) = (d[1] * inv, d[2] * inv);
         // Half surface areas: the factor 2 cancels in the ratio.
         let face = db * dc;
         let perimeter = db + dc;
-        let area = face + (hi - lo) * perimeter;
+        let area = face + d[0] * inv * perimeter;
         if !(area > 0.0) {
             return f32::INFINITY;
         }
-        let area_l = face + (pos - lo) * perimeter;
-        let area_r = face + (hi - pos) * perimeter;
+        let area_l = face + (pos - lo) * inv * perimeter;
+        let area_r = face + (hi - pos) * inv * perimeter;
         let bonus = if nl == 0 || nr == 0 {
             self.empty_bonus
         } else {
@@ -129,6 +136,16 @@ mod tests {
         }
         let line = Aabb::new(Vec3::splat(0.0), Vec3::new(1.0, 0.0, 0.0));
         assert_eq!(c.split_cost(&line, 0, 0.5, 1, 1), f32::INFINITY);
+    }
+
+    #[test]
+    fn huge_nodes_do_not_overflow() {
+        let c = CostModel::default();
+        let huge = Aabb::new(Vec3::splat(-1e30), Vec3::splat(1e30));
+        let cost = c.split_cost(&huge, 0, 0.0, 5, 5);
+        // Halving a cube: each side has half-area 1 + 0.5 * 2 = 2 of 3.
+        let expected = 15.0 + 20.0 * (2.0 * 5.0 + 2.0 * 5.0) / 3.0;
+        assert!((cost - expected).abs() < 1e-3, "{cost} vs {expected}");
     }
 
     #[test]

@@ -1,0 +1,83 @@
+//! The accelerated queries must equal the naive ones: every builder, every option, random
+//! scenes and real ones, closest hit and any hit against a loop over all triangles.
+
+mod common;
+
+use common::*;
+use proptest::prelude::*;
+use sahkd::{build, build_triangles, BuildOptions, Ray, Vec3};
+
+#[test]
+fn every_builder_matches_brute_force_on_random_scenes() {
+    for (seed, n) in [(1u64, 1usize), (2, 2), (3, 17), (4, 300), (5, 1500)] {
+        let mut rng = rng(seed);
+        let tris = random_triangles(&mut rng, n);
+        let rays = random_rays(&mut rng, &bounds_of(&tris), 600);
+        for options in all_variants() {
+            let tree = build_triangles(tris.clone(), &options).unwrap().tree;
+            let what = format!("{} on {n} random triangles", describe(&options));
+            tree.validate().unwrap_or_else(|e| panic!("{what}: {e}"));
+            check_oracle(&tree, &rays).unwrap_or_else(|e| panic!("{what}: {e}"));
+        }
+    }
+}
+
+fn bounds_of(tris: &[sahkd::Triangle]) -> sahkd::Aabb {
+    tris.iter()
+        .fold(sahkd::Aabb::EMPTY, |b, t| b.union(sahkd::geometry::triangle_bounds(t)))
+}
+
+/// Corners drawn from a small set of values, so coincident and planar events are the rule.
+fn grid_triangle() -> impl Strategy<Value = sahkd::Triangle> {
+    let coord = (0i32..6).prop_map(|k| k as f32 * 0.25);
+    let corner = [coord.clone(), coord.clone(), coord].prop_map(Vec3);
+    [corner.clone(), corner.clone(), corner]
+}
+
+fn grid_ray() -> impl Strategy<Value = Ray> {
+    let coord = (-4i32..10).prop_map(|k| k as f32 * 0.125 + 0.0);
+    let dir = (-2i32..3).prop_map(|k| k as f32);
+    (
+        [coord.clone(), coord.clone(), coord],
+        [dir.clone(), dir.clone(), dir],
+    )
+        .prop_map(|(o, d)| Ray::new(Vec3(o), Vec3(d)))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    #[test]
+    fn generated_grid_scenes_match_brute_force(
+        tris in prop::collection::vec(grid_triangle(), 1..80),
+        rays in prop::collection::vec(grid_ray(), 64),
+    ) {
+        for options in all_variants() {
+            let tree = build_triangles(tris.clone(), &options).unwrap().tree;
+            prop_assert!(tree.validate().is_ok(), "{}: {:?}", describe(&options), tree.validate());
+            let result = check_oracle(&tree, &rays);
+            prop_assert!(result.is_ok(), "{}: {}", describe(&options), result.unwrap_err());
+        }
+    }
+}
+
+fn real_scene_oracle(file: &str) {
+    let Some(mesh) = load_scene(file) else { return };
+    let mut rng = rng(7);
+    let rays = random_rays(&mut rng, &mesh.bounds(), 10_000);
+    for options in [BuildOptions::sweep(), BuildOptions::default(), BuildOptions::paper()] {
+        let tree = build(&mesh, &options).unwrap().tree;
+        let what = format!("{file} with {}", describe(&options));
+        tree.validate().unwrap_or_else(|e| panic!("{what}: {e}"));
+        check_oracle(&tree, &rays).unwrap_or_else(|e| panic!("{what}: {e}"));
+    }
+}
+
+#[test]
+fn bunny_matches_brute_force_on_10000_rays() {
+    real_scene_oracle("bunny.ply");
+}
+
+#[test]
+fn dragon_res3_matches_brute_force_on_10000_rays() {
+    real_scene_oracle("dragon_res3.ply");
+}
