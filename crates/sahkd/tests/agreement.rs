@@ -44,7 +44,10 @@ fn level_agrees_with_sweep(tris: &[sahkd::Triangle], case: &str) {
                 tree.first_difference(&reference)
             );
             if let Some(d) = tree.first_difference(&reference) {
-                eprintln!("{case}, {}: same SAH, different tree at {d}", describe(&options));
+                eprintln!(
+                    "{case}, {}: same SAH, different tree at {d}",
+                    describe(&options)
+                );
             }
         }
     }
@@ -60,7 +63,12 @@ fn level_and_sweep_agree_on_random_scenes() {
 
 #[test]
 fn level_and_sweep_agree_on_real_scenes() {
-    for file in ["dragon_res4.ply", "bunny.ply", "buddha_res3.ply", "sponza_dabrovic.ply"] {
+    for file in [
+        "dragon_res4.ply",
+        "bunny.ply",
+        "buddha_res3.ply",
+        "sponza_dabrovic.ply",
+    ] {
         let Some(mesh) = load_scene(file) else { return };
         level_agrees_with_sweep(&mesh.corner_triangles(), file);
     }
@@ -91,7 +99,9 @@ fn every_builder_gives_the_same_tree_on_1_2_3_and_8_threads() {
 
 #[test]
 fn the_level_builder_is_deterministic_on_a_real_scene() {
-    let Some(mesh) = load_scene("bunny.ply") else { return };
+    let Some(mesh) = load_scene("bunny.ply") else {
+        return;
+    };
     let with = |threads| {
         let o = BuildOptions {
             threads: Some(threads),

@@ -25,7 +25,10 @@ fn builds_and_answers(tris: Vec<Triangle>, rays: &[Ray], case: &str) {
             "{what}: {} references over the budget",
             stats.references
         );
-        assert!(stats.max_depth <= options.cost.max_depth_for(tris.len()), "{what}: too deep");
+        assert!(
+            stats.max_depth <= options.cost.max_depth_for(tris.len()),
+            "{what}: too deep"
+        );
     }
 }
 
@@ -36,9 +39,14 @@ fn non_finite_coordinates_are_rejected_naming_the_vertex() {
             vertices: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, bad, 0.0]],
             triangles: vec![[0, 1, 2], [1, 2, 3]],
         };
-        let err = build(&mesh, &BuildOptions::default()).err().expect("must be rejected");
+        let err = build(&mesh, &BuildOptions::default())
+            .err()
+            .expect("must be rejected");
         let msg = err.to_string();
-        assert!(msg.contains("vertex 3") && msg.contains("non-finite"), "{msg}");
+        assert!(
+            msg.contains("vertex 3") && msg.contains("non-finite"),
+            "{msg}"
+        );
     }
 }
 
@@ -48,13 +56,19 @@ fn indices_out_of_range_are_rejected_naming_the_face() {
         vertices: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
         triangles: vec![[0, 1, 2], [0, 1, 3]],
     };
-    let msg = build(&mesh, &BuildOptions::default()).err().unwrap().to_string();
+    let msg = build(&mesh, &BuildOptions::default())
+        .err()
+        .unwrap()
+        .to_string();
     assert!(msg.contains("face 1") && msg.contains("vertex 3"), "{msg}");
 }
 
 #[test]
 fn zero_threads_is_an_error_not_a_panic() {
-    let options = BuildOptions { threads: Some(0), ..BuildOptions::default() };
+    let options = BuildOptions {
+        threads: Some(0),
+        ..BuildOptions::default()
+    };
     let msg = build(&Mesh::default(), &options).err().unwrap().to_string();
     assert!(msg.contains("threads"), "{msg}");
 }
@@ -79,7 +93,11 @@ fn zero_area_triangles_are_kept_and_never_hit() {
     tris.push(tri([0.5; 3], [0.5; 3], [0.5; 3]));
     tris.push(tri([0.1, 0.1, 0.1], [0.9, 0.9, 0.9], [0.5, 0.5, 0.5]));
     tris.push(tri([0.0, 0.5, 0.5], [1.0, 0.5, 0.5], [1.0, 0.5, 0.5]));
-    let rays = random_rays(&mut rng, &sahkd::Aabb::new(Vec3::splat(0.0), Vec3::splat(1.0)), 500);
+    let rays = random_rays(
+        &mut rng,
+        &sahkd::Aabb::new(Vec3::splat(0.0), Vec3::splat(1.0)),
+        500,
+    );
     builds_and_answers(tris, &rays, "zero-area triangles");
 }
 
@@ -92,10 +110,20 @@ fn every_triangle_in_one_plane() {
             v[2] = 0.25;
         }
     }
-    let mut rays = random_rays(&mut rng, &sahkd::Aabb::new(Vec3::splat(0.0), Vec3::splat(1.0)), 500);
+    let mut rays = random_rays(
+        &mut rng,
+        &sahkd::Aabb::new(Vec3::splat(0.0), Vec3::splat(1.0)),
+        500,
+    );
     // Rays lying in the plane itself, and rays starting in it.
-    rays.push(Ray::new(Vec3::new(-1.0, 0.5, 0.25), Vec3::new(1.0, 0.0, 0.0)));
-    rays.push(Ray::new(Vec3::new(0.5, 0.5, 0.25), Vec3::new(0.0, 0.0, 1.0)));
+    rays.push(Ray::new(
+        Vec3::new(-1.0, 0.5, 0.25),
+        Vec3::new(1.0, 0.0, 0.0),
+    ));
+    rays.push(Ray::new(
+        Vec3::new(0.5, 0.5, 0.25),
+        Vec3::new(0.0, 0.0, 1.0),
+    ));
     builds_and_answers(tris, &rays, "one plane");
 }
 
@@ -103,7 +131,11 @@ fn every_triangle_in_one_plane() {
 fn ten_thousand_identical_triangles() {
     let t = tri([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.5]);
     let mut rng = rng(13);
-    let rays = random_rays(&mut rng, &sahkd::Aabb::new(Vec3::splat(0.0), Vec3::splat(1.0)), 50);
+    let rays = random_rays(
+        &mut rng,
+        &sahkd::Aabb::new(Vec3::splat(0.0), Vec3::splat(1.0)),
+        50,
+    );
     builds_and_answers(vec![t; 10_000], &rays, "10 000 identical triangles");
 }
 
@@ -114,11 +146,23 @@ fn huge_coordinates_next_to_tiny_triangles() {
         .into_iter()
         .map(|t| t.map(|v| v * 1e-6))
         .collect();
-    tris.push(tri([-1e30, -1e30, 0.0], [1e30, -1e30, 0.0], [0.0, 1e30, 1e30]));
-    tris.push(tri([1e30, 1e30, 1e30], [1e30, 1e30, -1e30], [-1e30, 1e30, 1e30]));
+    tris.push(tri(
+        [-1e30, -1e30, 0.0],
+        [1e30, -1e30, 0.0],
+        [0.0, 1e30, 1e30],
+    ));
+    tris.push(tri(
+        [1e30, 1e30, 1e30],
+        [1e30, 1e30, -1e30],
+        [-1e30, 1e30, 1e30],
+    ));
     let small = sahkd::Aabb::new(Vec3::splat(0.0), Vec3::splat(1e-6));
     let mut rays = random_rays(&mut rng, &small, 300);
-    rays.extend(random_rays(&mut rng, &sahkd::Aabb::new(Vec3::splat(-1e30), Vec3::splat(1e30)), 100));
+    rays.extend(random_rays(
+        &mut rng,
+        &sahkd::Aabb::new(Vec3::splat(-1e30), Vec3::splat(1e30)),
+        100,
+    ));
     builds_and_answers(tris, &rays, "1e30 coordinates");
 }
 
@@ -136,14 +180,20 @@ fn heavy_overlap_stays_within_the_reference_budget() {
             [p, q, q + e]
         })
         .collect();
-    let rays = random_rays(&mut rng, &sahkd::Aabb::new(Vec3::splat(0.0), Vec3::splat(1.0)), 200);
+    let rays = random_rays(
+        &mut rng,
+        &sahkd::Aabb::new(Vec3::splat(0.0), Vec3::splat(1.0)),
+        200,
+    );
     builds_and_answers(tris, &rays, "heavy overlap");
 }
 
 #[test]
 fn invalid_rays_hit_nothing() {
     let tris = vec![tri([0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0])];
-    let tree = build_triangles(tris, &BuildOptions::default()).unwrap().tree;
+    let tree = build_triangles(tris, &BuildOptions::default())
+        .unwrap()
+        .tree;
     let o = Vec3::new(0.2, 0.2, 0.0);
     for ray in [
         Ray::new(o, Vec3::splat(0.0)),
@@ -154,5 +204,7 @@ fn invalid_rays_hit_nothing() {
         assert_eq!(tree.intersect(&ray), None, "{ray:?}");
         assert!(!tree.occluded(&ray), "{ray:?}");
     }
-    assert!(tree.intersect(&Ray::new(o, Vec3::new(0.0, 0.0, 1.0))).is_some());
+    assert!(tree
+        .intersect(&Ray::new(o, Vec3::new(0.0, 0.0, 1.0)))
+        .is_some());
 }

@@ -23,8 +23,9 @@ fn every_builder_matches_brute_force_on_random_scenes() {
 }
 
 fn bounds_of(tris: &[sahkd::Triangle]) -> sahkd::Aabb {
-    tris.iter()
-        .fold(sahkd::Aabb::EMPTY, |b, t| b.union(sahkd::geometry::triangle_bounds(t)))
+    tris.iter().fold(sahkd::Aabb::EMPTY, |b, t| {
+        b.union(sahkd::geometry::triangle_bounds(t))
+    })
 }
 
 /// Corners drawn from a small set of values, so coincident and planar events are the rule.
@@ -64,7 +65,11 @@ fn real_scene_oracle(file: &str) {
     let Some(mesh) = load_scene(file) else { return };
     let mut rng = rng(7);
     let rays = random_rays(&mut rng, &mesh.bounds(), 10_000);
-    for options in [BuildOptions::sweep(), BuildOptions::default(), BuildOptions::paper()] {
+    for options in [
+        BuildOptions::sweep(),
+        BuildOptions::default(),
+        BuildOptions::paper(),
+    ] {
         let tree = build(&mesh, &options).unwrap().tree;
         let what = format!("{file} with {}", describe(&options));
         tree.validate().unwrap_or_else(|e| panic!("{what}: {e}"));

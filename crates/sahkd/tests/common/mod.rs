@@ -87,7 +87,10 @@ pub fn random_triangles(rng: &mut StdRng, n: usize) -> Vec<Triangle> {
 
 pub fn mesh_of(triangles: &[Triangle]) -> Mesh {
     Mesh {
-        vertices: triangles.iter().flat_map(|t| t.iter().map(|v| v.0)).collect(),
+        vertices: triangles
+            .iter()
+            .flat_map(|t| t.iter().map(|v| v.0))
+            .collect(),
         triangles: (0..triangles.len() as u32)
             .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
             .collect(),
@@ -101,8 +104,15 @@ pub fn random_rays(rng: &mut StdRng, bounds: &Aabb, n: usize) -> Vec<Ray> {
     let point = |rng: &mut StdRng, margin: f32| {
         let mut p = Vec3::splat(0.0);
         for a in 0..3 {
-            let (lo, hi) = (bounds.lo[a] - margin * ext[a], bounds.hi[a] + margin * ext[a]);
-            p[a] = if hi > lo { rng.random_range(lo..=hi) } else { lo };
+            let (lo, hi) = (
+                bounds.lo[a] - margin * ext[a],
+                bounds.hi[a] + margin * ext[a],
+            );
+            p[a] = if hi > lo {
+                rng.random_range(lo..=hi)
+            } else {
+                lo
+            };
         }
         p
     };
@@ -153,12 +163,16 @@ pub fn check_oracle(tree: &KdTree, rays: &[Ray]) -> Result<(), String> {
         let got = tree.intersect(ray);
         let want = brute::intersect(tris, ray);
         if got != want {
-            return Err(format!("ray {i} {ray:?}: tree gives {got:?}, brute force {want:?}"));
+            return Err(format!(
+                "ray {i} {ray:?}: tree gives {got:?}, brute force {want:?}"
+            ));
         }
         let got = tree.occluded(ray);
         let want = brute::occluded(tris, ray);
         if got != want {
-            return Err(format!("ray {i} {ray:?}: tree says occluded={got}, brute force {want}"));
+            return Err(format!(
+                "ray {i} {ray:?}: tree says occluded={got}, brute force {want}"
+            ));
         }
     }
     Ok(())
