@@ -772,12 +772,21 @@ fn obj_errors() {
     );
 }
 
+/// Texture and normal indices are not used, so bad ones are not errors (and must not
+/// reach tobj's index arithmetic, which overflows on them); a bad position index is.
 #[test]
-fn obj_index_zero_with_texture_coordinates_is_an_error_not_a_panic() {
-    let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/0/0 2/0/0 3/0/0\nf 0/1 1/1 2/1\n";
-    let message = Mesh::from_obj_bytes(text.as_bytes()).unwrap_err();
+fn obj_bad_texture_and_normal_indices_are_ignored_not_a_panic() {
+    let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n\
+        f 1/0/0 2/0/0 3/0/0\nf 1/-5/-5 2/-5/-5 3/-5/-5\nf 1/9/9 2/9/9 3/9/9\n";
+    let mesh = Mesh::from_obj_bytes(text.as_bytes()).unwrap();
+    assert_eq!(mesh.triangles.len(), 3);
+    assert_eq!(
+        corners(&mesh),
+        vec![[[0., 0., 0.], [1., 0., 0.], [0., 1., 0.]]; 3]
+    );
+    let message = Mesh::from_obj_bytes(format!("{text}f 0/1 1/1 2/1\n").as_bytes()).unwrap_err();
     assert!(
-        message.contains("line 7") && message.contains("vertex 0"),
+        message.contains("line 9") && message.contains("vertex 0"),
         "{message}"
     );
 }

@@ -106,8 +106,8 @@ fn first_missing_vertex(bytes: &[u8]) -> Option<(usize, i64, usize)> {
 
 /// The OBJ text as a `BufRead` that hands out one line at a time, counting them, and
 /// blanks `vt` and `vn` lines. Only positions are used, and with no texture coordinates or
-/// normals `tobj` never does index arithmetic on their indices (which can overflow on an
-/// index 0 in debug builds).
+/// normals `tobj` never does arithmetic on their indices, which overflows (a panic in
+/// debug builds) on a relative index reaching before the first one, as in `f 1/-5 2/-5 3/-5`.
 struct Lines<'a> {
     data: &'a [u8],
     /// Start of the line being handed out.
