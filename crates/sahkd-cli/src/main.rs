@@ -1,3 +1,102 @@
-fn main() {
-    println!("sahkd: command line not written yet");
+//! The `sahkd` command: build, inspect and trace SAH kd-trees.
+
+mod cmd;
+mod format;
+mod input;
+mod options;
+mod progress;
+mod rays;
+
+use clap::error::ErrorKind;
+use clap::Parser;
+use std::process::ExitCode;
+
+/// Build SAH kd-trees for ray tracing, inspect meshes and trace rays.
+#[derive(Parser, Debug)]
+#[command(name = "sahkd", version, arg_required_else_help = true)]
+struct Cli {
+    /// No progress display and no messages on stderr
+    #[arg(short, long, global = true)]
+    quiet: bool,
+
+    #[command(subcommand)]
+    command: cmd::Command,
+}
+
+/// Exit status of a command-line mistake, as clap and most Unix tools use.
+const USAGE: u8 = 2;
+/// Exit status of a command that could not do its work.
+const FAILURE: u8 = 1;
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return usage_error(e),
+    };
+    let context = cmd::Context { quiet: cli.quiet };
+    match cli.command.run(&context) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(FAILURE)
+        }
+    }
+}
+
+/// Help and version go out as clap writes them; real mistakes become one `error:` line.
+fn usage_error(e: clap::Error) -> ExitCode {
+    match e.kind() {
+        ErrorKind::DisplayHelp
+        | ErrorKind::DisplayVersion
+        | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+            let _ = e.print();
+            if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+                ExitCode::from(USAGE)
+            } else {
+                ExitCode::SUCCESS
+            }
+        }
+        _ => {
+            eprintln!("{}", one_line(&e.render().to_string()));
+            ExitCode::from(USAGE)
+        }
+    }
+}
+
+/// Joins clap's message, its possible values and tips into one line, dropping the usage
+/// and the "For more information" footer.
+fn one_line(rendered: &str) -> String {
+    let mut line = String::new();
+    for part in rendered
+        .lines()
+        .map(str::trim)
+        .take_while(|l| !l.starts_with("Usage:") && !l.starts_with("For more information"))
+        .filter(|l| !l.is_empty())
+    {
+        if !line.is_empty() {
+            line.push_str(if part.starts_with("tip:") { "; " } else { " " });
+        }
+        line.push_str(part);
+    }
+    line
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_command_line_definition_is_consistent() {
+        use clap::CommandFactory;
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn usage_errors_fit_on_one_line() {
+        let e = Cli::try_parse_from(["sahkd", "build", "--algorithm", "quick"]).unwrap_err();
+        let line = one_line(&e.render().to_string());
+        assert!(line.starts_with("error: "), "{line}");
+        assert!(!line.contains('\n'), "{line}");
+        assert!(line.contains("quick") && line.contains("level"), "{line}");
+    }
 }

@@ -1,0 +1,168 @@
+//! `sahkd build`: build a mesh's tree and report how it went.
+
+use super::Context;
+use crate::format::{self, Table};
+use crate::input::{self, MeshArg};
+use crate::options::{algorithm_name, axes_name, counting_name, switch_name, BuilderArgs};
+use crate::progress::Progress;
+use anyhow::{bail, Result};
+use sahkd::build::LevelReport;
+use sahkd::Axes;
+use serde::Serialize;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    pub mesh: MeshArg,
+
+    /// Check the tree's structure and that every triangle is in every leaf it overlaps
+    #[arg(long)]
+    pub validate: bool,
+
+    /// Print one JSON object on stdout instead of text
+    #[arg(long)]
+    pub json: bool,
+
+    // Last: the heading of its flattened options would carry over to any argument after it.
+    #[command(flatten)]
+    pub builder: BuilderArgs,
+}
+
+/// The JSON report.
+#[derive(Serialize)]
+struct Report<'a> {
+    source: String,
+    triangles: usize,
+    algorithm: &'static str,
+    axes: &'static str,
+    counting: &'static str,
+    clip: bool,
+    threads: usize,
+    load_ms: f64,
+    build_ms: f64,
+    presort_ms: f64,
+    sah_cost: f64,
+    nodes: usize,
+    interior: usize,
+    leaves: usize,
+    empty_leaves: usize,
+    references: usize,
+    duplication: f64,
+    max_depth: u32,
+    mean_leaf_size: f64,
+    bytes: usize,
+    peak_working_bytes: usize,
+    /// `null` unless `--validate` was given.
+    valid: Option<bool>,
+    levels: &'a [LevelReport],
+}
+
+pub fn run(args: Args, context: &Context) -> Result<()> {
+    let progress = Progress::new(context.quiet, args.json);
+    let builder = args.builder.builder()?;
+    let options = builder.options;
+    let loaded = builder.install(|| input::load(&args.mesh, &progress))?;
+
+    let spinner = progress.spinner(format!(
+        "building {} triangles",
+        format::count(loaded.mesh.triangles.len() as u64)
+    ));
+    let built = builder.build(&loaded.mesh);
+    spinner.finish_and_clear();
+    let built = built?;
+
+    let validation = args.validate.then(|| {
+        let spinner = progress.spinner("validating");
+        let result = builder.install(|| built.tree.validate());
+        spinner.finish_and_clear();
+        result
+    });
+
+    let stats = built.tree.stats(&options.cost);
+    let report = &built.report;
+    if args.json {
+        format::print_json(&Report {
+            source: loaded.source.name(),
+            triangles: loaded.mesh.triangles.len(),
+            algorithm: algorithm_name(options.algorithm),
+            axes: axes_name(options.axes),
+            counting: counting_name(options.counting),
+            clip: options.clip,
+            threads: builder.threads(),
+            load_ms: loaded.load_ms,
+            build_ms: report.build_ms,
+            presort_ms: report.presort_ms,
+            sah_cost: stats.sah_cost,
+            nodes: stats.nodes,
+            interior: stats.interior,
+            leaves: stats.leaves,
+            empty_leaves: stats.empty_leaves,
+            references: stats.references,
+            duplication: stats.duplication,
+            max_depth: stats.max_depth,
+            mean_leaf_size: stats.mean_leaf_size,
+            bytes: stats.bytes,
+            peak_working_bytes: report.peak_working_bytes,
+            valid: validation.as_ref().map(Result::is_ok),
+            levels: &report.levels,
+        })?;
+    } else {
+        let mut t = Table::default();
+        t.row("mesh", loaded.source.describe())
+            .row(
+                "triangles",
+                format::count(loaded.mesh.triangles.len() as u64),
+            )
+            .row(
+                "builder",
+                format!(
+                    "{}, {}, {} counting, clip {}, {} threads",
+                    algorithm_name(options.algorithm),
+                    match options.axes {
+                        Axes::Longest => "longest axis",
+                        Axes::All => "all axes",
+                    },
+                    counting_name(options.counting),
+                    switch_name(options.clip),
+                    builder.threads()
+                ),
+            )
+            .row("load time", format::ms(loaded.load_ms))
+            .row("build time", format::ms(report.build_ms))
+            .row("pre-sort time", format::ms(report.presort_ms))
+            .row("SAH cost", format!("{:.3}", stats.sah_cost))
+            .row("nodes", format::count(stats.nodes as u64))
+            .row("interior nodes", format::count(stats.interior as u64))
+            .row("leaves", format::count(stats.leaves as u64))
+            .row("empty leaves", format::count(stats.empty_leaves as u64))
+            .row("references", format::count(stats.references as u64))
+            .row(
+                "duplication",
+                format!("{:.3} per triangle", stats.duplication),
+            )
+            .row("max depth", stats.max_depth.to_string())
+            .row(
+                "mean leaf size",
+                format!("{:.2} triangles", stats.mean_leaf_size),
+            )
+            .row("tree size", format::bytes(stats.bytes as u64))
+            .row(
+                "peak working memory",
+                format::bytes(report.peak_working_bytes as u64),
+            );
+        if let Some(result) = &validation {
+            t.row(
+                "validation",
+                match result {
+                    Ok(()) => "ok".to_string(),
+                    Err(e) => format!("FAILED: {e}"),
+                },
+            );
+        }
+        format::print_text(&t.render())?;
+    }
+    if let Some(Err(e)) = validation {
+        bail!("the tree is not valid: {e}");
+    }
+    Ok(())
+}

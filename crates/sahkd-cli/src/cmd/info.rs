@@ -1,0 +1,122 @@
+//! `sahkd info`: what a mesh holds, and what in it a builder will find odd.
+
+use super::Context;
+use crate::format::{self, Table};
+use crate::input::{self, MeshArg, Source};
+use crate::progress::Progress;
+use anyhow::Result;
+use sahkd::Mesh;
+use serde::Serialize;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    pub mesh: MeshArg,
+
+    /// Print one JSON object on stdout instead of text
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Serialize)]
+struct Bounds {
+    lo: [f32; 3],
+    hi: [f32; 3],
+}
+
+#[derive(Serialize)]
+struct Report {
+    source: String,
+    /// "file" or "scene".
+    kind: &'static str,
+    /// `null` for a procedural scene.
+    file_bytes: Option<u64>,
+    load_ms: f64,
+    vertices: usize,
+    triangles: usize,
+    /// Of the referenced vertices; `null` for a mesh without triangles.
+    bounds: Option<Bounds>,
+    zero_area_triangles: usize,
+    unreferenced_vertices: usize,
+}
+
+pub fn run(args: Args, context: &Context) -> Result<()> {
+    let progress = Progress::new(context.quiet, args.json);
+    let loaded = input::load(&args.mesh, &progress)?;
+    let mesh = &loaded.mesh;
+    let bounds = mesh.bounds();
+    let report = Report {
+        source: loaded.source.name(),
+        kind: match loaded.source {
+            Source::File(_) => "file",
+            Source::Scene(_) => "scene",
+        },
+        file_bytes: loaded.file_bytes,
+        load_ms: loaded.load_ms,
+        vertices: mesh.vertices.len(),
+        triangles: mesh.triangles.len(),
+        bounds: (!bounds.is_empty()).then_some(Bounds {
+            lo: bounds.lo.0,
+            hi: bounds.hi.0,
+        }),
+        zero_area_triangles: mesh.zero_area_triangles(),
+        unreferenced_vertices: unreferenced_vertices(mesh),
+    };
+    if args.json {
+        return format::print_json(&report);
+    }
+    let mut t = Table::default();
+    t.row("mesh", loaded.source.describe());
+    if let Some(bytes) = report.file_bytes {
+        t.row(
+            "file size",
+            format!("{} ({} bytes)", format::bytes(bytes), format::count(bytes)),
+        );
+    }
+    t.row("load time", format::ms(report.load_ms))
+        .row("vertices", format::count(report.vertices as u64))
+        .row("triangles", format::count(report.triangles as u64))
+        .row(
+            "bounds",
+            match &report.bounds {
+                Some(b) => format!("{} - {}", point(b.lo), point(b.hi)),
+                None => "empty".to_string(),
+            },
+        )
+        .row(
+            "zero-area triangles",
+            format::count(report.zero_area_triangles as u64),
+        )
+        .row(
+            "unreferenced vertices",
+            format::count(report.unreferenced_vertices as u64),
+        );
+    format::print_text(&t.render())
+}
+
+fn point(p: [f32; 3]) -> String {
+    format!("({}, {}, {})", p[0], p[1], p[2])
+}
+
+/// Vertices no triangle uses (indices are in range: the mesh was validated on loading).
+fn unreferenced_vertices(mesh: &Mesh) -> usize {
+    let mut used = vec![false; mesh.vertices.len()];
+    for &i in mesh.triangles.iter().flatten() {
+        used[i as usize] = true;
+    }
+    used.iter().filter(|&&u| !u).count()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unreferenced_vertices_are_counted() {
+        let mesh = Mesh {
+            vertices: vec![[0.0; 3]; 6],
+            triangles: vec![[0, 2, 3], [3, 2, 0]],
+        };
+        assert_eq!(unreferenced_vertices(&mesh), 3);
+    }
+}

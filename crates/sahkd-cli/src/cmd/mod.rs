@@ -1,0 +1,36 @@
+//! One module per subcommand. To add one: write `cmd/NAME.rs` with an `Args` struct and a
+//! `run(args, &Context)`, then add a variant to [`Command`] and an arm to [`Command::run`].
+
+pub mod build;
+pub mod info;
+pub mod trace;
+
+use anyhow::Result;
+use clap::Subcommand;
+
+/// What every command gets besides its own arguments.
+#[derive(Clone, Copy, Debug)]
+pub struct Context {
+    /// `--quiet`: no progress display and no messages on stderr.
+    pub quiet: bool,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Build the kd-tree of a mesh and print its statistics
+    Build(build::Args),
+    /// Trace rays from a .npy file and write their hits to a .npz file
+    Trace(trace::Args),
+    /// Describe a mesh: counts, bounds, degenerate triangles, unused vertices
+    Info(info::Args),
+}
+
+impl Command {
+    pub fn run(self, context: &Context) -> Result<()> {
+        match self {
+            Command::Build(args) => build::run(args, context),
+            Command::Trace(args) => trace::run(args, context),
+            Command::Info(args) => info::run(args, context),
+        }
+    }
+}

@@ -1,0 +1,229 @@
+//! `sahkd trace`: trace rays from a `.npy` file against a mesh and write the hits to `.npz`.
+
+use super::Context;
+use crate::format;
+use crate::input::{self, MeshArg};
+use crate::options::BuilderArgs;
+use crate::progress::Progress;
+use crate::rays;
+use anyhow::{bail, Context as _, Result};
+use npyz::npz::NpzWriter;
+use npyz::WriterBuilder;
+use sahkd::{Hit, KdTree, Ray};
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    pub mesh: MeshArg,
+
+    /// Rays: float32 array of shape (R, 6) with origin xyz and direction xyz, traced over
+    /// t in [0, inf), or (R, 8) with t_min and t_max appended
+    #[arg(long, value_name = "RAYS.npy")]
+    pub rays: PathBuf,
+
+    /// Where to write the hits: arrays `t` (float32, inf on a miss), `prim` (int64, -1 on a
+    /// miss), `u` and `v` (float32, 0 on a miss); with --any-hit, `hit` (bool) only
+    #[arg(long, short, value_name = "HITS.npz")]
+    pub output: PathBuf,
+
+    /// Only ask whether each ray hits anything (shadow rays)
+    #[arg(long)]
+    pub any_hit: bool,
+
+    /// Print one JSON object on stdout instead of the summary on stderr
+    #[arg(long)]
+    pub json: bool,
+
+    // Last: the heading of its flattened options would carry over to any argument after it.
+    #[command(flatten)]
+    pub builder: BuilderArgs,
+}
+
+#[derive(Serialize)]
+struct Report {
+    source: String,
+    triangles: usize,
+    rays: usize,
+    any_hit: bool,
+    threads: usize,
+    load_ms: f64,
+    build_ms: f64,
+    trace_ms: f64,
+    mrays_per_s: f64,
+    hits: usize,
+}
+
+/// The answers of a batch of rays.
+enum Hits {
+    Closest(Vec<Option<Hit>>),
+    Any(Vec<bool>),
+}
+
+impl Hits {
+    fn count(&self) -> usize {
+        match self {
+            Hits::Closest(h) => h.iter().filter(|h| h.is_some()).count(),
+            Hits::Any(h) => h.iter().filter(|&&h| h).count(),
+        }
+    }
+}
+
+pub fn run(args: Args, context: &Context) -> Result<()> {
+    let progress = Progress::new(context.quiet, args.json);
+    // Everything the user can get wrong is checked before the long steps.
+    check_output_path(&args.output)?;
+    let builder = args.builder.builder()?;
+    let spinner = progress.spinner(format!("reading {}", args.rays.display()));
+    let rays = rays::read(&args.rays);
+    spinner.finish_and_clear();
+    let rays = rays?;
+    let loaded = builder.install(|| input::load(&args.mesh, &progress))?;
+
+    let spinner = progress.spinner(format!(
+        "building {} triangles",
+        format::count(loaded.mesh.triangles.len() as u64)
+    ));
+    let built = builder.build(&loaded.mesh);
+    spinner.finish_and_clear();
+    let built = built?;
+
+    let start = Instant::now();
+    let hits = builder.install(|| trace(&built.tree, &rays, args.any_hit, &progress));
+    let trace_ms = start.elapsed().as_secs_f64() * 1e3;
+
+    let spinner = progress.spinner(format!("writing {}", args.output.display()));
+    let written = write_hits(&args.output, &hits);
+    spinner.finish_and_clear();
+    written?;
+
+    let report = Report {
+        source: loaded.source.name(),
+        triangles: loaded.mesh.triangles.len(),
+        rays: rays.len(),
+        any_hit: args.any_hit,
+        threads: builder.threads(),
+        load_ms: loaded.load_ms,
+        build_ms: built.report.build_ms,
+        trace_ms,
+        mrays_per_s: if trace_ms > 0.0 {
+            rays.len() as f64 / (trace_ms * 1e3)
+        } else {
+            0.0
+        },
+        hits: hits.count(),
+    };
+    if args.json {
+        format::print_json(&report)?;
+    } else if !context.quiet {
+        eprintln!(
+            "{} rays on {} triangles of {}: {} hit; build {}, trace {}, {:.2} Mrays/s on {} threads; wrote {}",
+            format::count(report.rays as u64),
+            format::count(report.triangles as u64),
+            report.source,
+            format::count(report.hits as u64),
+            format::ms(report.build_ms),
+            format::ms(report.trace_ms),
+            report.mrays_per_s,
+            report.threads,
+            args.output.display()
+        );
+    }
+    Ok(())
+}
+
+/// Traces in one batch, or in slices when a progress bar is shown so that it can move.
+fn trace(tree: &KdTree, rays: &[Ray], any_hit: bool, progress: &Progress) -> Hits {
+    let slice = if progress.enabled() {
+        (rays.len() / 100).max(1 << 14)
+    } else {
+        rays.len().max(1)
+    };
+    let bar = progress.bar(rays.len() as u64, "tracing");
+    let hits = if any_hit {
+        let mut out = Vec::with_capacity(rays.len());
+        for chunk in rays.chunks(slice) {
+            out.extend(tree.occluded_batch(chunk));
+            bar.inc(chunk.len() as u64);
+        }
+        Hits::Any(out)
+    } else {
+        let mut out = Vec::with_capacity(rays.len());
+        for chunk in rays.chunks(slice) {
+            out.extend(tree.intersect_batch(chunk));
+            bar.inc(chunk.len() as u64);
+        }
+        Hits::Closest(out)
+    };
+    bar.finish_and_clear();
+    hits
+}
+
+/// Fails early when the output cannot be written where asked, so a long build is not lost.
+fn check_output_path(path: &Path) -> Result<()> {
+    if path.is_dir() {
+        bail!("{}: is a directory, not a file to write", path.display());
+    }
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !parent.is_dir() {
+        bail!(
+            "cannot write {}: the directory {} does not exist",
+            path.display(),
+            parent.display()
+        );
+    }
+    Ok(())
+}
+
+fn write_hits(path: &Path, hits: &Hits) -> Result<()> {
+    let write = || -> std::io::Result<()> {
+        let mut npz = NpzWriter::create(path)?;
+        match hits {
+            Hits::Closest(h) => {
+                let t = h.iter().map(|h| h.map_or(f32::INFINITY, |h| h.t));
+                let prim = h.iter().map(|h| h.map_or(-1, |h| i64::from(h.prim)));
+                let u = h.iter().map(|h| h.map_or(0.0, |h| h.u));
+                let v = h.iter().map(|h| h.map_or(0.0, |h| h.v));
+                write_array(&mut npz, "t", h.len(), t)?;
+                write_array(&mut npz, "prim", h.len(), prim)?;
+                write_array(&mut npz, "u", h.len(), u)?;
+                write_array(&mut npz, "v", h.len(), v)?;
+            }
+            Hits::Any(h) => write_array(&mut npz, "hit", h.len(), h.iter().copied())?,
+        }
+        // Dropping the writers would finish the archive but swallow any error doing so.
+        let mut file = npz.zip_writer().finish()?;
+        file.flush()
+    };
+    write().with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// One 1-D array of `len` items, stored uncompressed as `np.savez` does.
+fn write_array<T, W>(
+    npz: &mut NpzWriter<W>,
+    name: &str,
+    len: usize,
+    items: impl Iterator<Item = T>,
+) -> std::io::Result<()>
+where
+    T: npyz::AutoSerialize,
+    W: std::io::Write + std::io::Seek,
+{
+    let large = (len as u64) * (std::mem::size_of::<T>() as u64) >= u32::MAX as u64;
+    let options = npyz::zip::write::FileOptions::default()
+        .compression_method(npyz::zip::CompressionMethod::Stored)
+        .large_file(large);
+    let mut writer = npz
+        .array::<T>(name, options)?
+        .default_dtype()
+        .shape(&[len as u64])
+        .begin_nd()?;
+    writer.extend(items)?;
+    writer.finish()
+}

@@ -1,0 +1,429 @@
+//! The builder options shared by every command that builds a tree.
+//!
+//! Defaults are read from `sahkd::BuildOptions::default()` and `sahkd::CostModel::default()`,
+//! so the library stays the one place that decides them; the command line only shows them.
+
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+use sahkd::{Algorithm, Axes, Build, BuildOptions, CostModel, Counting, Mesh};
+use std::fmt;
+
+fn default_options() -> BuildOptions {
+    BuildOptions::default()
+}
+
+fn default_cost() -> CostModel {
+    CostModel::default()
+}
+
+/// How to build a tree: which builder, which candidates, the cost model and the threads.
+#[derive(Args, Clone, Debug)]
+#[command(next_help_heading = "Builder options")]
+pub struct BuilderArgs {
+    /// Tree builder
+    #[arg(long, value_enum, value_name = "NAME",
+          default_value_t = default_options().algorithm.into())]
+    pub algorithm: AlgorithmArg,
+
+    /// Axes a node's split candidates come from
+    #[arg(long, value_enum, value_name = "WHICH",
+          default_value_t = default_options().axes.into())]
+    pub axes: AxesArg,
+
+    /// How the level builder counts primitives on each side of a candidate
+    #[arg(long, value_enum, value_name = "HOW",
+          default_value_t = default_options().counting.into())]
+    pub counting: CountingArg,
+
+    /// Clip straddling triangles to each child (perfect splits)
+    #[arg(long, value_enum, value_name = "ON|OFF",
+          default_value_t = default_options().clip.into())]
+    pub clip: Switch,
+
+    /// Worker threads for building and tracing [default: all cores]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = parse_threads)]
+    pub threads: Option<usize>,
+
+    /// SAH cost of traversing an interior node (K_T)
+    #[arg(long, value_name = "COST", allow_negative_numbers = true, value_parser = parse_non_negative,
+          default_value_t = default_cost().traversal)]
+    pub kt: f32,
+
+    /// SAH cost of one ray/triangle test (K_I)
+    #[arg(long, value_name = "COST", allow_negative_numbers = true, value_parser = parse_positive,
+          default_value_t = default_cost().intersection)]
+    pub ki: f32,
+
+    /// Factor on the cost of a split that leaves one side empty (1 disables the bonus)
+    #[arg(long, value_name = "FACTOR", allow_negative_numbers = true, value_parser = parse_unit_interval,
+          default_value_t = default_cost().empty_bonus)]
+    pub empty_bonus: f32,
+
+    /// Nodes with this many triangles or fewer become leaves
+    #[arg(long, value_name = "N", allow_negative_numbers = true,
+          default_value_t = default_cost().leaf_size)]
+    pub leaf_size: u32,
+
+    /// Depth limit, or `auto` for 8 + 1.3 log2(triangles)
+    #[arg(long, value_name = "DEPTH|auto", allow_negative_numbers = true, value_parser = parse_max_depth,
+          default_value_t = MaxDepth(default_cost().max_depth))]
+    pub max_depth: MaxDepth,
+
+    /// Stop splitting once references reach this many times the triangle count
+    #[arg(long, value_name = "FACTOR", allow_negative_numbers = true, value_parser = parse_at_least_one,
+          default_value_t = default_cost().max_duplication)]
+    pub max_duplication: f32,
+}
+
+impl BuilderArgs {
+    /// The library's options for these arguments (`threads` as given, `None` for all cores).
+    pub fn build_options(&self) -> BuildOptions {
+        BuildOptions {
+            algorithm: self.algorithm.into(),
+            axes: self.axes.into(),
+            counting: self.counting.into(),
+            clip: self.clip.into(),
+            threads: self.threads,
+            cost: CostModel {
+                traversal: self.kt,
+                intersection: self.ki,
+                empty_bonus: self.empty_bonus,
+                leaf_size: self.leaf_size,
+                max_depth: self.max_depth.0,
+                max_duplication: self.max_duplication,
+            },
+        }
+    }
+
+    /// The options and a thread pool of the requested size, for building and tracing alike.
+    pub fn builder(&self) -> Result<Builder> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            // 0 asks rayon for its default: every core, or RAYON_NUM_THREADS.
+            .num_threads(self.threads.unwrap_or(0))
+            .build()
+            .context("cannot start the worker threads")?;
+        let mut options = self.build_options();
+        options.threads = Some(pool.current_num_threads());
+        Ok(Builder { options, pool })
+    }
+}
+
+/// Build options together with the thread pool every parallel step of a command runs in.
+pub struct Builder {
+    /// The options, with `threads` the number of threads actually used.
+    pub options: BuildOptions,
+    pool: rayon::ThreadPool,
+}
+
+impl Builder {
+    pub fn threads(&self) -> usize {
+        self.pool.current_num_threads()
+    }
+
+    /// Runs `f` inside the pool, so that rayon work it starts uses `threads()` threads.
+    pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        self.pool.install(f)
+    }
+
+    /// Builds the tree of `mesh` on the pool.
+    pub fn build(&self, mesh: &Mesh) -> Result<Build> {
+        // Inside the pool, `threads: None` means "the current pool" to the library.
+        let options = BuildOptions {
+            threads: None,
+            ..self.options
+        };
+        self.install(|| sahkd::build(mesh, &options))
+            .context("cannot build the tree")
+    }
+}
+
+/// `sahkd::Algorithm` as a command-line value.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum AlgorithmArg {
+    /// Wald & Havran sweep: serial, exact SAH over sorted events
+    Sweep,
+    /// Li, Tan & Liao: breadth-first, every candidate of a level priced in parallel
+    Level,
+    /// The level framework with brute-force counting (for checking)
+    Naive,
+}
+
+impl From<Algorithm> for AlgorithmArg {
+    fn from(a: Algorithm) -> Self {
+        match a {
+            Algorithm::Sweep => Self::Sweep,
+            Algorithm::Level => Self::Level,
+            Algorithm::Naive => Self::Naive,
+        }
+    }
+}
+
+impl From<AlgorithmArg> for Algorithm {
+    fn from(a: AlgorithmArg) -> Self {
+        match a {
+            AlgorithmArg::Sweep => Self::Sweep,
+            AlgorithmArg::Level => Self::Level,
+            AlgorithmArg::Naive => Self::Naive,
+        }
+    }
+}
+
+/// `sahkd::Axes` as a command-line value.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum AxesArg {
+    /// The node's longest axis only
+    Longest,
+    /// All three axes
+    All,
+}
+
+impl From<Axes> for AxesArg {
+    fn from(a: Axes) -> Self {
+        match a {
+            Axes::Longest => Self::Longest,
+            Axes::All => Self::All,
+        }
+    }
+}
+
+impl From<AxesArg> for Axes {
+    fn from(a: AxesArg) -> Self {
+        match a {
+            AxesArg::Longest => Self::Longest,
+            AxesArg::All => Self::All,
+        }
+    }
+}
+
+/// `sahkd::Counting` as a command-line value.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum CountingArg {
+    /// The paper's walk of an interval tree over the sorted primitives
+    SpaceTree,
+    /// Segmented prefix sums over sorted start/end events
+    Scan,
+}
+
+impl From<Counting> for CountingArg {
+    fn from(c: Counting) -> Self {
+        match c {
+            Counting::SpaceTree => Self::SpaceTree,
+            Counting::Scan => Self::Scan,
+        }
+    }
+}
+
+impl From<CountingArg> for Counting {
+    fn from(c: CountingArg) -> Self {
+        match c {
+            CountingArg::SpaceTree => Self::SpaceTree,
+            CountingArg::Scan => Self::Scan,
+        }
+    }
+}
+
+/// An on/off flag that takes a value, so that a default of `on` can be turned off.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Switch {
+    On,
+    Off,
+}
+
+impl From<bool> for Switch {
+    fn from(b: bool) -> Self {
+        if b {
+            Self::On
+        } else {
+            Self::Off
+        }
+    }
+}
+
+impl From<Switch> for bool {
+    fn from(s: Switch) -> Self {
+        s == Switch::On
+    }
+}
+
+/// The kebab-case names the command line uses, for reports.
+pub fn algorithm_name(a: Algorithm) -> &'static str {
+    match a {
+        Algorithm::Sweep => "sweep",
+        Algorithm::Level => "level",
+        Algorithm::Naive => "naive",
+    }
+}
+
+pub fn axes_name(a: Axes) -> &'static str {
+    match a {
+        Axes::Longest => "longest",
+        Axes::All => "all",
+    }
+}
+
+pub fn counting_name(c: Counting) -> &'static str {
+    match c {
+        Counting::SpaceTree => "space-tree",
+        Counting::Scan => "scan",
+    }
+}
+
+pub fn switch_name(b: bool) -> &'static str {
+    if b {
+        "on"
+    } else {
+        "off"
+    }
+}
+
+/// A depth limit, `None` for the library's automatic one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MaxDepth(pub Option<u32>);
+
+impl fmt::Display for MaxDepth {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0 {
+            Some(d) => write!(f, "{d}"),
+            None => f.write_str("auto"),
+        }
+    }
+}
+
+fn parse_max_depth(s: &str) -> Result<MaxDepth, String> {
+    if s == "auto" {
+        return Ok(MaxDepth(None));
+    }
+    s.parse::<u32>()
+        .map(|d| MaxDepth(Some(d)))
+        .map_err(|_| format!("expected a whole number or `auto`, found `{s}`"))
+}
+
+fn parse_threads(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("the number of threads must be at least 1".into()),
+        Ok(n) => Ok(n),
+        Err(_) => Err(format!("expected a number of threads, found `{s}`")),
+    }
+}
+
+fn parse_finite(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(x) if x.is_finite() => Ok(x),
+        _ => Err(format!("expected a finite number, found `{s}`")),
+    }
+}
+
+fn parse_non_negative(s: &str) -> Result<f32, String> {
+    let x = parse_finite(s)?;
+    if x >= 0.0 {
+        Ok(x)
+    } else {
+        Err(format!("must not be negative, found {x}"))
+    }
+}
+
+fn parse_positive(s: &str) -> Result<f32, String> {
+    let x = parse_finite(s)?;
+    if x > 0.0 {
+        Ok(x)
+    } else {
+        Err(format!("must be greater than 0, found {x}"))
+    }
+}
+
+fn parse_unit_interval(s: &str) -> Result<f32, String> {
+    let x = parse_finite(s)?;
+    if x > 0.0 && x <= 1.0 {
+        Ok(x)
+    } else {
+        Err(format!("must be in (0, 1], found {x}"))
+    }
+}
+
+fn parse_at_least_one(s: &str) -> Result<f32, String> {
+    let x = parse_finite(s)?;
+    if x >= 1.0 {
+        Ok(x)
+    } else {
+        Err(format!("must be at least 1, found {x}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Wrapper {
+        #[command(flatten)]
+        builder: BuilderArgs,
+    }
+
+    fn parse(args: &[&str]) -> Result<BuildOptions, clap::Error> {
+        let argv = std::iter::once("test").chain(args.iter().copied());
+        Wrapper::try_parse_from(argv).map(|w| w.builder.build_options())
+    }
+
+    #[test]
+    fn no_flags_give_the_library_defaults() {
+        assert_eq!(parse(&[]).unwrap(), BuildOptions::default());
+    }
+
+    #[test]
+    fn every_flag_reaches_the_options() {
+        let o = parse(&[
+            "--algorithm=sweep",
+            "--axes=all",
+            "--counting=space-tree",
+            "--clip=off",
+            "--threads=3",
+            "--kt=1.5",
+            "--ki=2.5",
+            "--empty-bonus=1",
+            "--leaf-size=4",
+            "--max-depth=12",
+            "--max-duplication=2",
+        ])
+        .unwrap();
+        let expected = BuildOptions {
+            algorithm: Algorithm::Sweep,
+            axes: Axes::All,
+            counting: Counting::SpaceTree,
+            clip: false,
+            threads: Some(3),
+            cost: CostModel {
+                traversal: 1.5,
+                intersection: 2.5,
+                empty_bonus: 1.0,
+                leaf_size: 4,
+                max_depth: Some(12),
+                max_duplication: 2.0,
+            },
+        };
+        assert_eq!(o, expected);
+        assert_eq!(
+            parse(&["--max-depth", "auto"]).unwrap().cost.max_depth,
+            None
+        );
+    }
+
+    #[test]
+    fn bad_values_are_usage_errors() {
+        for bad in [
+            &["--threads", "0"][..],
+            &["--threads", "many"],
+            &["--algorithm", "quick"],
+            &["--clip", "yes"],
+            &["--kt", "-1"],
+            &["--ki", "0"],
+            &["--ki", "nan"],
+            &["--empty-bonus", "1.5"],
+            &["--max-duplication", "0.5"],
+            &["--max-depth", "deep"],
+            &["--leaf-size", "-2"],
+        ] {
+            assert!(parse(bad).is_err(), "{bad:?} was accepted");
+        }
+    }
+}

@@ -1,0 +1,104 @@
+//! Rays from a `.npy` file: float32 rows of origin xyz, direction xyz, and optionally
+//! t_min, t_max.
+
+use anyhow::{bail, Context, Result};
+use npyz::{DType, NpyFile, Order, TypeChar};
+use sahkd::{Ray, Vec3};
+use std::fs::File;
+use std::io::BufReader;
+use std::path::Path;
+
+/// Reads an (R, 6) or (R, 8) float32 array. Rows of 6 get the range [0, inf).
+pub fn read(path: &Path) -> Result<Vec<Ray>> {
+    let name = path.display();
+    let file = File::open(path).with_context(|| format!("cannot read {name}"))?;
+    let npy = NpyFile::new(BufReader::new(file))
+        .with_context(|| format!("{name}: not a readable .npy file"))?;
+    let dtype = npy.dtype();
+    if !is_float32(&dtype) {
+        bail!(
+            "{name}: expected dtype float32, found {}",
+            describe_dtype(&dtype)
+        );
+    }
+    let shape = npy.shape().to_vec();
+    let width = match shape[..] {
+        [_, w @ (6 | 8)] => w as usize,
+        _ => bail!(
+            "{name}: expected shape (R, 6) or (R, 8), found {}",
+            describe_shape(&shape)
+        ),
+    };
+    let rows = usize::try_from(shape[0]).context("too many rays")?;
+    let order = npy.order();
+    let values: Vec<f32> = npy
+        .into_vec()
+        .with_context(|| format!("{name}: cannot read the ray data"))?;
+    // Fortran order stores column by column; C order row by row.
+    let at = |row: usize, col: usize| match order {
+        Order::C => values[row * width + col],
+        Order::Fortran => values[col * rows + row],
+    };
+    Ok((0..rows)
+        .map(|r| {
+            let ray = Ray::new(
+                Vec3::new(at(r, 0), at(r, 1), at(r, 2)),
+                Vec3::new(at(r, 3), at(r, 4), at(r, 5)),
+            );
+            if width == 8 {
+                ray.with_range(at(r, 6), at(r, 7))
+            } else {
+                ray
+            }
+        })
+        .collect())
+}
+
+fn is_float32(dtype: &DType) -> bool {
+    matches!(dtype, DType::Plain(t) if t.type_char() == TypeChar::Float && t.size_field() == 4)
+}
+
+/// A dtype as numpy names it, with its type string: `float64 ('<f8')`.
+fn describe_dtype(dtype: &DType) -> String {
+    match dtype {
+        DType::Plain(t) => {
+            let bits = t.size_field() * 8;
+            let numpy = match t.type_char() {
+                TypeChar::Bool => Some("bool".to_string()),
+                TypeChar::Int => Some(format!("int{bits}")),
+                TypeChar::Uint => Some(format!("uint{bits}")),
+                TypeChar::Float => Some(format!("float{bits}")),
+                TypeChar::Complex => Some(format!("complex{bits}")),
+                _ => None,
+            };
+            match numpy {
+                Some(n) => format!("{n} ('{t}')"),
+                None => format!("'{t}'"),
+            }
+        }
+        DType::Array(..) | DType::Record(_) => format!("the structured dtype {}", dtype.descr()),
+    }
+}
+
+/// A shape as numpy prints it: `(3, 5)`, `(7,)`, `()`.
+fn describe_shape(shape: &[u64]) -> String {
+    match shape {
+        [n] => format!("({n},)"),
+        _ => {
+            let dims: Vec<String> = shape.iter().map(u64::to_string).collect();
+            format!("({})", dims.join(", "))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shapes_print_like_numpy() {
+        assert_eq!(describe_shape(&[]), "()");
+        assert_eq!(describe_shape(&[7]), "(7,)");
+        assert_eq!(describe_shape(&[3, 5]), "(3, 5)");
+    }
+}
