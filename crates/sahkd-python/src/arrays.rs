@@ -124,12 +124,10 @@ fn shape_err(arr: &Bound<'_, PyUntypedArray>, name: &str, what: &str) -> PyErr {
     ))
 }
 
-/// Reads an `(n, 3)` float array into single precision, rejecting values that are not finite
-/// (or overflow float32) with the row named.
-fn read_points(obj: &Bound<'_, PyAny>, name: &str, what: &str) -> PyResult<Vec<[f32; 3]>> {
-    let (pts, n) = points(obj, name, what)?;
-    let mut out = Vec::with_capacity(n);
-    let mut push = |i: usize, p: [f64; 3]| -> PyResult<()> {
+/// Calls `f(row, point)` for every row in single precision, rejecting values that are not
+/// finite (or overflow float32) with the row named.
+fn visit_points(pts: &Points<'_>, name: &str, mut f: impl FnMut(usize, [f32; 3])) -> PyResult<()> {
+    let mut visit = |i: usize, p: [f64; 3]| -> PyResult<()> {
         let q = p.map(|c| c as f32);
         if !q.iter().all(|c| c.is_finite()) {
             return Err(PyValueError::new_err(format!(
@@ -137,13 +135,20 @@ fn read_points(obj: &Bound<'_, PyAny>, name: &str, what: &str) -> PyResult<Vec<[
                 p[0], p[1], p[2]
             )));
         }
-        out.push(q);
+        f(i, q);
         Ok(())
     };
-    match &pts {
-        Points::F32(a) => for_each_row(a.as_array(), |i, r| push(i, r.map(f64::from)))?,
-        Points::F64(a) => for_each_row(a.as_array(), push)?,
+    match pts {
+        Points::F32(a) => for_each_row(a.as_array(), |i, r| visit(i, r.map(f64::from))),
+        Points::F64(a) => for_each_row(a.as_array(), visit),
     }
+}
+
+/// An `(n, 3)` float array in single precision.
+fn read_points(obj: &Bound<'_, PyAny>, name: &str, what: &str) -> PyResult<Vec<[f32; 3]>> {
+    let (pts, n) = points(obj, name, what)?;
+    let mut out = Vec::with_capacity(n);
+    visit_points(&pts, name, |_, p| out.push(p))?;
     Ok(out)
 }
 
@@ -282,20 +287,20 @@ pub fn rays(
     t_min: &Bound<'_, PyAny>,
     t_max: &Bound<'_, PyAny>,
 ) -> PyResult<Vec<Ray>> {
-    let o = read_points(origins, "origins", "(R, 3)")?;
-    let d = read_points(directions, "directions", "(R, 3)")?;
-    if o.len() != d.len() {
+    let (o, n) = points(origins, "origins", "(R, 3)")?;
+    let (d, m) = points(directions, "directions", "(R, 3)")?;
+    if n != m {
         return Err(PyValueError::new_err(format!(
-            "origins and directions must have the same number of rays, got {} and {}",
-            o.len(),
-            d.len()
+            "origins and directions must have the same number of rays, got {n} and {m}"
         )));
     }
-    let lo = ray_bound(t_min, "t_min", o.len(), false)?;
-    let hi = ray_bound(t_max, "t_max", o.len(), true)?;
-    Ok(o.iter()
-        .zip(&d)
-        .enumerate()
-        .map(|(i, (&o, &d))| Ray::new(Vec3(o), Vec3(d)).with_range(lo.get(i), hi.get(i)))
-        .collect())
+    let lo = ray_bound(t_min, "t_min", n, false)?;
+    let hi = ray_bound(t_max, "t_max", n, true)?;
+    // Straight into the rays, without a copy of either array on the way.
+    let mut rays = Vec::with_capacity(n);
+    visit_points(&o, "origins", |i, p| {
+        rays.push(Ray::new(Vec3(p), Vec3::splat(0.0)).with_range(lo.get(i), hi.get(i)))
+    })?;
+    visit_points(&d, "directions", |i, p| rays[i].direction = Vec3(p))?;
+    Ok(rays)
 }
