@@ -239,18 +239,26 @@ def test_the_same_tree_on_any_number_of_threads():
 
 def test_queries_release_the_interpreter():
     """A Python thread keeps running while a long query is under way in another."""
-    rng = np.random.default_rng(4)
-    vertices, faces = triangle_soup(rng, 200)
+    # 300 stacked squares and rays up through them: every ray hits 300 faces, so a query
+    # takes long whatever tree the builder makes.
+    layers = 300
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
+    vertices = np.concatenate([np.column_stack([square, np.full(4, z, np.float32)]) for z in range(layers)])
+    faces = np.concatenate([np.array([[0, 1, 2], [0, 2, 3]]) + 4 * z for z in range(layers)])
     tree = sahkd.KdTree(vertices, faces, threads=1)
-    # Rays enough for a query of at least 0.2 s, forty switch intervals of the interpreter.
-    n = 10_000
-    while True:
-        origins, directions = random_rays(rng, vertices, faces, n)
+    rng = np.random.default_rng(4)
+    n = 20_000
+    while True:  # rays enough for a query of at least 0.2 s, forty switch intervals
+        xy = rng.uniform(0.01, 0.99, (n, 2))
+        xy[np.abs(xy[:, 0] - xy[:, 1]) < 1e-3, 1] += 0.005  # off the squares' diagonals
+        origins = np.column_stack([xy, np.full(n, -1.0)])
+        directions = np.tile([0.0, 0.0, 1.0], (n, 1))
         start = time.perf_counter()
-        tree.count_hits(origins, directions)
-        if time.perf_counter() - start >= 0.2 or n >= 10_000_000:
+        counts = tree.count_hits(origins, directions)
+        if time.perf_counter() - start >= 0.2 or n >= 2_000_000:
             break
         n *= 4
+    assert (counts == layers).all()
     assert _python_runs_beside(lambda: tree.count_hits(origins, directions))
 
 
