@@ -181,21 +181,32 @@ fn ray_args(
 #[pymethods]
 impl PyKdTree {
     #[new]
-    #[pyo3(signature = (vertices, faces, algorithm="level", axes=None, counting=None, clip=true, threads=None, **cost))]
+    #[pyo3(
+        signature = (vertices, faces, algorithm=None, axes=None, counting=None, clip=None, threads=None, **cost),
+        text_signature = "(vertices, faces, algorithm='level', axes=None, counting=None, clip=True, threads=None, **cost)"
+    )]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         vertices: &Bound<'_, PyAny>,
         faces: &Bound<'_, PyAny>,
-        algorithm: &str,
-        axes: Option<&str>,
-        counting: Option<&str>,
-        clip: bool,
-        threads: Option<i64>,
+        algorithm: Option<&Bound<'_, PyAny>>,
+        axes: Option<&Bound<'_, PyAny>>,
+        counting: Option<&Bound<'_, PyAny>>,
+        clip: Option<&Bound<'_, PyAny>>,
+        threads: Option<&Bound<'_, PyAny>>,
         cost: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
-        let threads = threads_arg(threads)?;
-        let options = options::build_options(algorithm, axes, counting, clip, threads, cost)?;
+        let threads = threads_arg(options::int_arg(threads, "threads")?)?;
+        let algorithm = options::str_arg(algorithm, "algorithm")?;
+        let options = options::build_options(
+            algorithm.as_deref().unwrap_or("level"),
+            options::str_arg(axes, "axes")?.as_deref(),
+            options::str_arg(counting, "counting")?.as_deref(),
+            options::bool_arg(clip, "clip", true)?,
+            threads,
+            cost,
+        )?;
         let triangles = arrays::triangles(vertices, faces)?;
         let pool = pool_of(threads)?;
         // The pool is chosen here, so the core must not start one of its own.
@@ -416,9 +427,9 @@ impl PyKdTree {
         directions: &Bound<'py, PyAny>,
         t_min: Option<&Bound<'py, PyAny>>,
         t_max: Option<&Bound<'py, PyAny>>,
-        max_hits: Option<i64>,
+        max_hits: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let max_hits = match max_hits {
+        let max_hits = match options::int_arg(max_hits, "max_hits")? {
             None => None,
             Some(m) if m >= 0 => Some(m as usize),
             Some(m) => {

@@ -51,6 +51,56 @@ pub fn counting_name(c: Counting) -> &'static str {
     }
 }
 
+fn type_name(v: &Bound<'_, PyAny>) -> String {
+    v.get_type()
+        .name()
+        .map(|n| n.to_string())
+        .unwrap_or_else(|_| "?".into())
+}
+
+/// A string argument (None: absent).
+pub fn str_arg(v: Option<&Bound<'_, PyAny>>, name: &str) -> PyResult<Option<String>> {
+    match v {
+        Some(v) if !v.is_none() => v.extract::<String>().map(Some).map_err(|_| {
+            PyTypeError::new_err(format!("{name} must be a string, got {}", type_name(v)))
+        }),
+        _ => Ok(None),
+    }
+}
+
+/// A True/False argument (numpy booleans too).
+pub fn bool_arg(v: Option<&Bound<'_, PyAny>>, name: &str, default: bool) -> PyResult<bool> {
+    match v {
+        None => Ok(default),
+        Some(v) => v.extract::<bool>().map_err(|_| {
+            PyTypeError::new_err(format!(
+                "{name} must be True or False, got {}",
+                type_name(v)
+            ))
+        }),
+    }
+}
+
+/// An integer argument or None (bools are refused: `threads=True` is a mistake).
+pub fn int_arg(v: Option<&Bound<'_, PyAny>>, name: &str) -> PyResult<Option<i64>> {
+    match v {
+        Some(v) if !v.is_none() => {
+            if v.is_instance_of::<pyo3::types::PyBool>() {
+                return Err(PyTypeError::new_err(format!(
+                    "{name} must be an integer or None, not a bool"
+                )));
+            }
+            v.extract::<i64>().map(Some).map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "{name} must be an integer or None, got {}",
+                    type_name(v)
+                ))
+            })
+        }
+        _ => Ok(None),
+    }
+}
+
 fn positive(name: &str, v: f32) -> PyResult<f32> {
     if v.is_finite() && v > 0.0 {
         Ok(v)

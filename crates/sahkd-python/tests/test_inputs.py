@@ -55,7 +55,12 @@ def test_bad_meshes_are_refused_clearly(vertices, faces, error, message):
         (dict(counting="tree"), ValueError, r"counting must be one of 'scan', 'space-tree'"),
         (dict(threads=0), ValueError, r"threads must be at least 1"),
         (dict(threads=-2), ValueError, r"threads must be at least 1 .* got -2"),
-        (dict(threads="two"), TypeError, r"threads"),
+        (dict(threads="two"), TypeError, r"threads must be an integer or None, got str"),
+        (dict(threads=1.5), TypeError, r"threads must be an integer or None, got float"),
+        (dict(threads=True), TypeError, r"threads must be an integer or None, not a bool"),
+        (dict(algorithm=1), TypeError, r"algorithm must be a string, got int"),
+        (dict(axes=["all"]), TypeError, r"axes must be a string, got list"),
+        (dict(clip="yes"), TypeError, r"clip must be True or False, got str"),
         (dict(traversal=0), ValueError, r"traversal must be a positive finite number"),
         (dict(intersection=float("nan")), ValueError, r"intersection must be a positive finite number"),
         (dict(empty_bonus=1.5), ValueError, r"empty_bonus must be in \(0, 1\]"),
@@ -75,11 +80,12 @@ def test_bad_options_are_refused_clearly(kwargs, error, message):
 
 def test_good_options_are_accepted():
     tree = sahkd.KdTree(
-        V, F, algorithm="SWEEP", axes="all", counting="space_tree", clip=False, threads=2,
+        V, F, algorithm="SWEEP", axes="all", counting="space_tree", clip=np.False_, threads=np.int64(2),
         traversal=10, intersection=25.0, empty_bonus=1, leaf_size=0, max_depth=None,
         max_duplication=2,
     )  # fmt: skip
     assert tree.stats["counting"] == "space-tree" and tree.stats["algorithm"] == "sweep"
+    assert tree.stats["clip"] is False and tree.stats["threads"] == 2
 
 
 @pytest.mark.parametrize(
@@ -105,6 +111,14 @@ def test_bad_rays_are_refused_clearly(origins, directions, kwargs, error, messag
     for query in (tree.intersect, tree.occluded, tree.count_hits, tree.intersect_all):
         with pytest.raises(error, match=message):
             query(origins, directions, **kwargs)
+
+
+def test_bad_max_hits_is_refused_clearly():
+    tree = sahkd.KdTree(V, F)
+    with pytest.raises(TypeError, match="max_hits must be an integer or None, got str"):
+        tree.intersect_all(O, D, max_hits="3")
+    with pytest.raises(ValueError, match="max_hits must be at least 0"):
+        tree.intersect_all(O, D, max_hits=-1)
 
 
 def test_infinite_t_max_and_integer_ranges_are_fine():
