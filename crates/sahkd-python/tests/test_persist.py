@@ -80,6 +80,7 @@ def test_trees_travel_to_a_spawned_process_pool():
 @pytest.mark.skipif(
     "fork" not in multiprocessing.get_all_start_methods(), reason="no fork on this platform"
 )
+@pytest.mark.filterwarnings("ignore:This process .* is multi-threaded:DeprecationWarning")
 def test_forked_workers_do_not_hang_on_the_parents_threads():
     """The parent's worker threads do not exist in a forked child; sahkd starts new ones
     there instead of waiting forever on the inherited pool."""
