@@ -1,0 +1,28 @@
+"""Result types of the queries (plain named tuples of numpy arrays)."""
+
+from collections import namedtuple
+
+import numpy as np
+
+Hits = namedtuple("Hits", ["t", "prim", "u", "v"])
+Hits.__doc__ = """Closest hit of each ray: t (float32, inf on a miss), prim (int64 face index,
+-1 on a miss), u, v (float32 barycentrics of corners 1 and 2; the hit point is
+(1 - u - v) * p0 + u * p1 + v * p2)."""
+
+
+class AllHits(namedtuple("AllHits", ["t", "prim", "u", "v", "offsets"])):
+    """Every hit of every ray as flat arrays: the hits of ray i are the slice
+    offsets[i]:offsets[i + 1] of t, prim, u and v, nearest first."""
+
+    __slots__ = ()
+
+    @property
+    def ray(self):
+        """The ray index of each hit (int64)."""
+        counts = np.diff(self.offsets)
+        return np.repeat(np.arange(len(counts), dtype=np.int64), counts)
+
+    @property
+    def counts(self):
+        """The number of hits of each ray (int64)."""
+        return np.diff(self.offsets)

@@ -1,0 +1,306 @@
+//! numpy arrays in: checks of shape, dtype and values, and conversion to the core's types.
+//!
+//! Arrays are read where they lie, through their strides: a C-contiguous array is read as one
+//! slice, any other layout row by row, so slices and transposes are accepted without a copy.
+//! Only arrays numpy cannot hand over as a plain view (misaligned, or in the other byte order)
+//! are first copied by numpy into a normal array. Every value is checked on the way in, so a
+//! bad input is a Python exception naming the offending row, never a wrong answer or a crash.
+
+use numpy::ndarray::{ArrayView1, ArrayView2};
+use numpy::prelude::*;
+use numpy::{Element, PyArray1, PyArray2, PyUntypedArray};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use sahkd::{Ray, Triangle, Vec3};
+
+/// Any numpy array (array-likes go through `numpy.asarray`), in native byte order and aligned.
+fn ndarray<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Bound<'py, PyUntypedArray>> {
+    let py = obj.py();
+    let numpy = py.import("numpy")?;
+    let arr = match obj.cast::<PyUntypedArray>() {
+        Ok(a) => a.clone(),
+        Err(_) => numpy
+            .call_method1("asarray", (obj,))
+            .map_err(|e| {
+                PyTypeError::new_err(format!("{name} must be a numpy array or array-like: {e}"))
+            })?
+            .cast_into::<PyUntypedArray>()
+            .map_err(|_| PyTypeError::new_err(format!("{name} must be a numpy array")))?,
+    };
+    let dtype = arr.dtype();
+    if dtype.has_fields() || dtype.has_subarray() {
+        return Err(PyTypeError::new_err(format!(
+            "{name} must be a plain numeric array, not a structured one (dtype {})",
+            dtype_name(&arr)
+        )));
+    }
+    if arr.is_aligned() && dtype.is_native_byteorder() != Some(false) {
+        return Ok(arr);
+    }
+    let native = dtype.call_method1("newbyteorder", ("=",))?;
+    Ok(numpy
+        .call_method1("ascontiguousarray", (&arr, native))?
+        .cast_into::<PyUntypedArray>()?)
+}
+
+fn dtype_name(arr: &Bound<'_, PyUntypedArray>) -> String {
+    arr.dtype()
+        .str()
+        .map(|s| s.to_string())
+        .unwrap_or_else(|_| "?".into())
+}
+
+fn shape_text(shape: &[usize]) -> String {
+    match shape {
+        [n] => format!("({n},)"),
+        _ => format!(
+            "({})",
+            shape
+                .iter()
+                .map(|d| d.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
+/// Checks that `arr` is `(n, 3)`, naming the expected shape as `what`.
+fn check_rows_of_3(arr: &Bound<'_, PyUntypedArray>, name: &str, what: &str) -> PyResult<usize> {
+    let shape = arr.shape();
+    if shape.len() != 2 || shape[1] != 3 {
+        return Err(PyValueError::new_err(format!(
+            "{name} must have shape {what}, got {}",
+            shape_text(shape)
+        )));
+    }
+    Ok(shape[0])
+}
+
+/// Calls `f(row_index, row)` for each row of an `(n, 3)` view, in order.
+fn for_each_row<T: Copy, E>(
+    view: ArrayView2<'_, T>,
+    mut f: impl FnMut(usize, [T; 3]) -> Result<(), E>,
+) -> Result<(), E> {
+    if let Some(flat) = view.as_slice() {
+        for (i, r) in flat.chunks_exact(3).enumerate() {
+            f(i, [r[0], r[1], r[2]])?;
+        }
+    } else {
+        for (i, r) in view.outer_iter().enumerate() {
+            f(i, [r[0], r[1], r[2]])?;
+        }
+    }
+    Ok(())
+}
+
+/// A float32 or float64 `(n, 3)` array, borrowed read-only.
+enum Points<'py> {
+    F32(numpy::PyReadonlyArray2<'py, f32>),
+    F64(numpy::PyReadonlyArray2<'py, f64>),
+}
+
+fn points<'py>(obj: &Bound<'py, PyAny>, name: &str, what: &str) -> PyResult<(Points<'py>, usize)> {
+    let arr = ndarray(obj, name)?;
+    let dtype = arr.dtype();
+    let (kind, size) = (dtype.kind(), dtype.itemsize());
+    let pts = match (kind, size) {
+        (b'f', 4) => Points::F32(arr.cast::<PyArray2<f32>>().map_err(|_| shape_err(&arr, name, what))?.try_readonly()?),
+        (b'f', 8) => Points::F64(arr.cast::<PyArray2<f64>>().map_err(|_| shape_err(&arr, name, what))?.try_readonly()?),
+        _ => {
+            return Err(PyTypeError::new_err(format!(
+                "{name} must be a float32 or float64 array, got dtype {} (convert with .astype(numpy.float32))",
+                dtype_name(&arr)
+            )))
+        }
+    };
+    let n = check_rows_of_3(&arr, name, what)?;
+    Ok((pts, n))
+}
+
+fn shape_err(arr: &Bound<'_, PyUntypedArray>, name: &str, what: &str) -> PyErr {
+    PyValueError::new_err(format!(
+        "{name} must have shape {what}, got {}",
+        shape_text(arr.shape())
+    ))
+}
+
+/// Calls `f(row, point)` for every row in single precision, rejecting values that are not
+/// finite (or overflow float32) with the row named.
+fn visit_points(pts: &Points<'_>, name: &str, mut f: impl FnMut(usize, [f32; 3])) -> PyResult<()> {
+    let mut visit = |i: usize, p: [f64; 3]| -> PyResult<()> {
+        let q = p.map(|c| c as f32);
+        if !q.iter().all(|c| c.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "{name}[{i}] = ({}, {}, {}) is not finite in float32",
+                p[0], p[1], p[2]
+            )));
+        }
+        f(i, q);
+        Ok(())
+    };
+    match pts {
+        Points::F32(a) => for_each_row(a.as_array(), |i, r| visit(i, r.map(f64::from))),
+        Points::F64(a) => for_each_row(a.as_array(), visit),
+    }
+}
+
+/// An `(n, 3)` float array in single precision.
+fn read_points(obj: &Bound<'_, PyAny>, name: &str, what: &str) -> PyResult<Vec<[f32; 3]>> {
+    let (pts, n) = points(obj, name, what)?;
+    let mut out = Vec::with_capacity(n);
+    visit_points(&pts, name, |_, p| out.push(p))?;
+    Ok(out)
+}
+
+/// Integer dtypes accepted for face indices.
+trait Index: Element + Copy {
+    fn wide(self) -> i128;
+}
+macro_rules! index_types {
+    ($($t:ty),*) => { $(impl Index for $t { fn wide(self) -> i128 { self as i128 } })* };
+}
+index_types!(i8, i16, i32, i64, u8, u16, u32, u64);
+
+fn faces_of<T: Index>(
+    arr: &Bound<'_, PyUntypedArray>,
+    vertices: &[[f32; 3]],
+) -> PyResult<Vec<Triangle>> {
+    let faces = arr
+        .cast::<PyArray2<T>>()
+        .map_err(|_| shape_err(arr, "faces", "(F, 3)"))?
+        .try_readonly()?;
+    let view = faces.as_array();
+    let mut out = Vec::with_capacity(view.nrows());
+    let n = vertices.len() as i128;
+    for_each_row(view, |i, r| -> PyResult<()> {
+        let mut tri = [Vec3::splat(0.0); 3];
+        for (k, &idx) in r.iter().enumerate() {
+            let w = idx.wide();
+            if !(0..n).contains(&w) {
+                return Err(PyValueError::new_err(format!(
+                    "faces[{i}] refers to vertex {w}, but there are only {n} vertices (valid indices are 0..{n})"
+                )));
+            }
+            tri[k] = Vec3(vertices[w as usize]);
+        }
+        out.push(tri);
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// The triangles of an indexed mesh: `(V, 3)` float vertices and `(F, 3)` integer faces.
+pub fn triangles(vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>) -> PyResult<Vec<Triangle>> {
+    let verts = read_points(vertices, "vertices", "(V, 3)")?;
+    let arr = ndarray(faces, "faces")?;
+    check_rows_of_3(&arr, "faces", "(F, 3)")?;
+    let dtype = arr.dtype();
+    let tris = match (dtype.kind(), dtype.itemsize()) {
+        (b'i', 1) => faces_of::<i8>(&arr, &verts),
+        (b'i', 2) => faces_of::<i16>(&arr, &verts),
+        (b'i', 4) => faces_of::<i32>(&arr, &verts),
+        (b'i', 8) => faces_of::<i64>(&arr, &verts),
+        (b'u', 1) => faces_of::<u8>(&arr, &verts),
+        (b'u', 2) => faces_of::<u16>(&arr, &verts),
+        (b'u', 4) => faces_of::<u32>(&arr, &verts),
+        (b'u', 8) => faces_of::<u64>(&arr, &verts),
+        _ => Err(PyTypeError::new_err(format!(
+            "faces must be an integer array, got dtype {}",
+            dtype_name(&arr)
+        ))),
+    }?;
+    Ok(tris)
+}
+
+/// A ray parameter bound: one value for every ray, or one per ray.
+enum Bound1 {
+    All(f32),
+    PerRay(Vec<f32>),
+}
+
+impl Bound1 {
+    fn get(&self, i: usize) -> f32 {
+        match self {
+            Bound1::All(v) => *v,
+            Bound1::PerRay(v) => v[i],
+        }
+    }
+}
+
+fn ray_bound(obj: &Bound<'_, PyAny>, name: &str, rays: usize, allow_inf: bool) -> PyResult<Bound1> {
+    let check = |i: Option<usize>, v: f64| -> PyResult<f32> {
+        let ok = if allow_inf {
+            !v.is_nan()
+        } else {
+            v.is_finite()
+        };
+        if !ok {
+            let at = i.map(|i| format!("[{i}]")).unwrap_or_default();
+            let why = if allow_inf { "NaN" } else { "not finite" };
+            return Err(PyValueError::new_err(format!("{name}{at} is {why}")));
+        }
+        Ok(v as f32)
+    };
+    if obj.cast::<PyUntypedArray>().is_err() {
+        if let Ok(v) = obj.extract::<f64>() {
+            return Ok(Bound1::All(check(None, v)?));
+        }
+    }
+    let arr = ndarray(obj, name)?;
+    let kind = arr.dtype().kind();
+    if !matches!(kind, b'f' | b'i' | b'u') {
+        return Err(PyTypeError::new_err(format!(
+            "{name} must be a number or an array of numbers, got dtype {}",
+            dtype_name(&arr)
+        )));
+    }
+    let floats = obj
+        .py()
+        .import("numpy")?
+        .call_method1("asarray", (&arr, "float64"))?;
+    let shape = arr.shape().to_vec();
+    match shape.len() {
+        0 => Ok(Bound1::All(check(None, floats.extract::<f64>()?)?)),
+        1 if shape[0] == rays => {
+            let a = floats.cast::<PyArray1<f64>>()?.try_readonly()?;
+            let view: ArrayView1<'_, f64> = a.as_array();
+            let vals = view
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| check(Some(i), v))
+                .collect::<PyResult<Vec<f32>>>()?;
+            Ok(Bound1::PerRay(vals))
+        }
+        _ => Err(PyValueError::new_err(format!(
+            "{name} must be a scalar or have shape ({rays},) like the rays, got {}",
+            shape_text(&shape)
+        ))),
+    }
+}
+
+/// Rays from `(R, 3)` origins and directions and scalar or `(R,)` bounds. Non-finite origins,
+/// directions or bounds are errors; a zero direction or an empty range is a ray that hits
+/// nothing.
+pub fn rays(
+    origins: &Bound<'_, PyAny>,
+    directions: &Bound<'_, PyAny>,
+    t_min: &Bound<'_, PyAny>,
+    t_max: &Bound<'_, PyAny>,
+) -> PyResult<Vec<Ray>> {
+    let (o, n) = points(origins, "origins", "(R, 3)")?;
+    let (d, m) = points(directions, "directions", "(R, 3)")?;
+    if n != m {
+        return Err(PyValueError::new_err(format!(
+            "origins and directions must have the same number of rays, got {n} and {m}"
+        )));
+    }
+    let lo = ray_bound(t_min, "t_min", n, false)?;
+    let hi = ray_bound(t_max, "t_max", n, true)?;
+    // Straight into the rays, without a copy of either array on the way.
+    let mut rays = Vec::with_capacity(n);
+    visit_points(&o, "origins", |i, p| {
+        rays.push(Ray::new(Vec3(p), Vec3::splat(0.0)).with_range(lo.get(i), hi.get(i)))
+    })?;
+    visit_points(&d, "directions", |i, p| rays[i].direction = Vec3(p))?;
+    Ok(rays)
+}

@@ -1,0 +1,510 @@
+//! `sahkd._sahkd`: the Python extension module behind the `sahkd` package.
+//!
+//! Arrays come in as numpy arrays of float32 or float64 and any integer type, are checked and
+//! converted once (`arrays`), and the build and every query then run on a worker pool with
+//! the interpreter released (`Python::detach`), so other Python threads go on meanwhile.
+//! Results go back as numpy arrays that take over the Rust vectors without a copy.
+
+mod all_hits;
+mod arrays;
+mod format;
+mod options;
+mod pool;
+
+use std::path::PathBuf;
+use std::sync::{Arc, OnceLock};
+
+use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::pybacked::PyBackedBytes;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyBytes, PyDict, PyTuple, PyType};
+use rayon::prelude::*;
+use rayon::ThreadPool;
+use sahkd::{Hit, KdTree, Ray, TreeStats};
+
+use format::Meta;
+
+/// Nodes as (N, 2) words and the references, as `_structure` returns them.
+type Structure<'py> = (Bound<'py, PyArray2<u32>>, Bound<'py, PyArray1<u32>>);
+
+/// Rays handed to one worker at a time by the all-hits queries.
+const RAY_CHUNK: usize = 256;
+
+/// A kd-tree over a triangle mesh, for batched ray queries from numpy.
+///
+/// vertices: (V, 3) float32 or float64 array; faces: (F, 3) array of any integer type,
+/// every index in 0..V. Other memory layouts (slices, transposes) are read in place.
+/// algorithm: "level" (the parallel level-by-level builder), "sweep" (the serial reference
+/// builder) or "naive". axes: "longest" or "all"; counting: "scan" or "space-tree" (None:
+/// the library defaults, shown in .stats). clip: clip straddling triangles to each child
+/// ("perfect splits"). threads: worker threads for the build and for every query of this
+/// tree (None: every core, or RAYON_NUM_THREADS). cost: the SAH cost model and limits,
+/// traversal, intersection, empty_bonus, leaf_size, max_depth, max_duplication.
+///
+/// The interpreter is released during the build and every query. Trees pickle, and save
+/// to files (save / sahkd.load).
+#[pyclass(module = "sahkd", name = "KdTree", frozen)]
+struct PyKdTree {
+    tree: KdTree,
+    meta: Meta,
+    stats: OnceLock<TreeStats>,
+}
+
+/// Which oracle answers an all-hits query: the tree walk, or every triangle tested.
+#[derive(Clone, Copy)]
+enum Walk {
+    Tree,
+    Brute,
+}
+
+fn pool_of(threads: Option<usize>) -> PyResult<Arc<ThreadPool>> {
+    pool::pool(threads).map_err(PyRuntimeError::new_err)
+}
+
+fn threads_arg(threads: Option<i64>) -> PyResult<Option<usize>> {
+    match threads {
+        None => Ok(None),
+        Some(n) if n >= 1 => Ok(Some(n as usize)),
+        Some(n) => Err(PyValueError::new_err(format!(
+            "threads must be at least 1 (or None for every core), got {n}"
+        ))),
+    }
+}
+
+fn namedtuple<'py>(
+    py: Python<'py>,
+    cell: &'static PyOnceLock<Py<PyType>>,
+    name: &str,
+) -> PyResult<Bound<'py, PyType>> {
+    Ok(cell.import(py, "sahkd._types", name)?.clone())
+}
+
+static HITS: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+static ALL_HITS: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+
+impl PyKdTree {
+    fn from_tree(tree: KdTree, meta: Meta) -> Self {
+        PyKdTree {
+            tree,
+            meta,
+            stats: OnceLock::new(),
+        }
+    }
+
+    fn pool(&self) -> PyResult<Arc<ThreadPool>> {
+        pool_of(self.meta.options.threads)
+    }
+
+    fn tree_stats(&self) -> &TreeStats {
+        self.stats
+            .get_or_init(|| self.tree.stats(&self.meta.options.cost))
+    }
+
+    /// Every hit of every ray as flat arrays plus offsets, nearest first within a ray.
+    fn all_hits<'py>(
+        &self,
+        py: Python<'py>,
+        rays: Vec<Ray>,
+        max_hits: Option<usize>,
+        walk: Walk,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let pool = self.pool()?;
+        let tree = &self.tree;
+        let (flat, counts) = py.detach(|| {
+            pool.install(|| {
+                let chunks: Vec<(Vec<Hit>, Vec<u32>)> = rays
+                    .par_chunks(RAY_CHUNK)
+                    .map(|chunk| {
+                        let (mut flat, mut counts, mut buf) = (Vec::new(), Vec::new(), Vec::new());
+                        for r in chunk {
+                            match walk {
+                                Walk::Tree => all_hits::all_hits(tree, r, &mut buf),
+                                Walk::Brute => all_hits::brute_all_hits(tree, r, &mut buf),
+                            }
+                            buf.truncate(max_hits.unwrap_or(usize::MAX));
+                            counts.push(buf.len() as u32);
+                            flat.extend_from_slice(&buf);
+                        }
+                        (flat, counts)
+                    })
+                    .collect();
+                let total = chunks.iter().map(|(f, _)| f.len()).sum();
+                let mut flat = Vec::with_capacity(total);
+                let mut counts = Vec::with_capacity(rays.len());
+                for (f, c) in chunks {
+                    flat.extend(f);
+                    counts.extend(c);
+                }
+                (flat, counts)
+            })
+        });
+        let mut offsets = Vec::with_capacity(counts.len() + 1);
+        offsets.push(0i64);
+        let mut at = 0i64;
+        for c in counts {
+            at += c as i64;
+            offsets.push(at);
+        }
+        let t: Vec<f32> = flat.iter().map(|h| h.t).collect();
+        let prim: Vec<i64> = flat.iter().map(|h| h.prim as i64).collect();
+        let u: Vec<f32> = flat.iter().map(|h| h.u).collect();
+        let v: Vec<f32> = flat.iter().map(|h| h.v).collect();
+        namedtuple(py, &ALL_HITS, "AllHits")?.call1((
+            PyArray1::from_vec(py, t),
+            PyArray1::from_vec(py, prim),
+            PyArray1::from_vec(py, u),
+            PyArray1::from_vec(py, v),
+            PyArray1::from_vec(py, offsets),
+        ))
+    }
+}
+
+fn ray_args(
+    origins: &Bound<'_, PyAny>,
+    directions: &Bound<'_, PyAny>,
+    t_min: Option<&Bound<'_, PyAny>>,
+    t_max: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Vec<Ray>> {
+    let py = origins.py();
+    let zero = 0.0f64.into_pyobject(py)?.into_any();
+    let inf = f64::INFINITY.into_pyobject(py)?.into_any();
+    arrays::rays(
+        origins,
+        directions,
+        t_min.unwrap_or(&zero),
+        t_max.unwrap_or(&inf),
+    )
+}
+
+#[pymethods]
+impl PyKdTree {
+    #[new]
+    #[pyo3(
+        signature = (vertices, faces, algorithm=None, axes=None, counting=None, clip=None, threads=None, **cost),
+        text_signature = "(vertices, faces, algorithm='level', axes=None, counting=None, clip=True, threads=None, **cost)"
+    )]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        vertices: &Bound<'_, PyAny>,
+        faces: &Bound<'_, PyAny>,
+        algorithm: Option<&Bound<'_, PyAny>>,
+        axes: Option<&Bound<'_, PyAny>>,
+        counting: Option<&Bound<'_, PyAny>>,
+        clip: Option<&Bound<'_, PyAny>>,
+        threads: Option<&Bound<'_, PyAny>>,
+        cost: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
+        let threads = threads_arg(options::int_arg(threads, "threads")?)?;
+        let algorithm = options::str_arg(algorithm, "algorithm")?;
+        let options = options::build_options(
+            algorithm.as_deref().unwrap_or("level"),
+            options::str_arg(axes, "axes")?.as_deref(),
+            options::str_arg(counting, "counting")?.as_deref(),
+            options::bool_arg(clip, "clip", true)?,
+            threads,
+            cost,
+        )?;
+        let triangles = arrays::triangles(vertices, faces)?;
+        let pool = pool_of(threads)?;
+        // The pool is chosen here, so the core must not start one of its own.
+        let run = sahkd::BuildOptions {
+            threads: None,
+            ..options
+        };
+        let built = py
+            .detach(|| pool.install(|| sahkd::build_triangles(triangles, &run)))
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let meta = Meta {
+            options,
+            build_ms: built.report.build_ms,
+            presort_ms: built.report.presort_ms,
+            build_threads: pool.current_num_threads(),
+        };
+        Ok(Self::from_tree(built.tree, meta))
+    }
+
+    /// Number of triangles.
+    fn __len__(&self) -> usize {
+        self.tree.triangles().len()
+    }
+
+    fn __repr__(&self) -> String {
+        let s = self.tree_stats();
+        format!(
+            "<sahkd.KdTree: {} triangles, {} nodes, {} leaves, algorithm={}>",
+            s.triangles,
+            s.nodes,
+            s.leaves,
+            options::algorithm_name(self.meta.options.algorithm)
+        )
+    }
+
+    /// Size, shape and cost of the tree and how it was built, as a dict with the keys of
+    /// `sahkd build --json`.
+    #[getter]
+    fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.tree_stats();
+        let o = &self.meta.options;
+        let d = PyDict::new(py);
+        d.set_item("triangles", s.triangles)?;
+        d.set_item("nodes", s.nodes)?;
+        d.set_item("leaves", s.leaves)?;
+        d.set_item("empty_leaves", s.empty_leaves)?;
+        d.set_item("references", s.references)?;
+        d.set_item("duplication", s.duplication)?;
+        d.set_item("max_depth", s.max_depth)?;
+        d.set_item("mean_leaf_size", s.mean_leaf_size)?;
+        d.set_item("sah_cost", s.sah_cost)?;
+        d.set_item("bytes", s.bytes)?;
+        d.set_item("build_ms", self.meta.build_ms)?;
+        d.set_item("presort_ms", self.meta.presort_ms)?;
+        d.set_item("algorithm", options::algorithm_name(o.algorithm))?;
+        d.set_item("axes", options::axes_name(o.axes))?;
+        d.set_item("counting", options::counting_name(o.counting))?;
+        d.set_item("clip", o.clip)?;
+        d.set_item("threads", self.meta.build_threads)?;
+        Ok(d)
+    }
+
+    /// The scene box as a (2, 3) float32 array: lo, hi.
+    #[getter]
+    fn bounds<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let b = self.tree.bounds();
+        Ok(PyArray2::from_vec2(
+            py,
+            &[b.lo.0.to_vec(), b.hi.0.to_vec()],
+        )?)
+    }
+
+    /// The triangles as stored (float32), a (F, 3, 3) array: triangle, corner, axis.
+    #[getter]
+    fn triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let flat: Vec<f32> = self
+            .tree
+            .triangles()
+            .iter()
+            .flat_map(|t| t.iter().flat_map(|v| v.0))
+            .collect();
+        let n = self.tree.triangles().len();
+        PyArray1::from_vec(py, flat).reshape([n, 3, 3])
+    }
+
+    /// The raw structure: nodes as a (N, 2) uint32 array of their two words (see the
+    /// `sahkd::tree` docs) and the leaves' references as a uint32 array.
+    fn _structure<'py>(&self, py: Python<'py>) -> PyResult<Structure<'py>> {
+        let words: Vec<u32> = self
+            .tree
+            .nodes()
+            .iter()
+            .flat_map(|n| {
+                let (w, b) = format::node_words(n);
+                [w, b]
+            })
+            .collect();
+        let n = self.tree.nodes().len();
+        Ok((
+            PyArray1::from_vec(py, words).reshape([n, 2])?,
+            PyArray1::from_vec(py, self.tree.refs().to_vec()),
+        ))
+    }
+
+    /// Checks the tree's structure and completeness; raises ValueError if it is broken.
+    fn validate(&self, py: Python<'_>) -> PyResult<()> {
+        py.detach(|| self.tree.validate())
+            .map_err(PyValueError::new_err)
+    }
+
+    /// The closest hit of each ray origin + t * direction with t_min <= t <= t_max, as
+    /// Hits(t, prim, u, v).
+    /// origins, directions: (R, 3) float32 or float64; t_min, t_max: scalars or (R,) arrays.
+    /// Returns float32 t (inf on a miss), int64 prim (the face index, -1 on a miss), and
+    /// float32 barycentrics u, v of corners 1 and 2 (0 on a miss). Ties in t go to the lower
+    /// face index. A ray with a zero direction or t_min > t_max hits nothing.
+    #[pyo3(signature = (origins, directions, t_min=None, t_max=None), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf)")]
+    fn intersect<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        t_min: Option<&Bound<'py, PyAny>>,
+        t_max: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let rays = ray_args(origins, directions, t_min, t_max)?;
+        let pool = self.pool()?;
+        let (t, prim, u, v) = py.detach(|| {
+            let hits = pool.install(|| self.tree.intersect_batch(&rays));
+            let n = hits.len();
+            let (mut t, mut prim, mut u, mut v) = (
+                Vec::with_capacity(n),
+                Vec::with_capacity(n),
+                Vec::with_capacity(n),
+                Vec::with_capacity(n),
+            );
+            for h in hits {
+                match h {
+                    Some(h) => {
+                        t.push(h.t);
+                        prim.push(h.prim as i64);
+                        u.push(h.u);
+                        v.push(h.v);
+                    }
+                    None => {
+                        t.push(f32::INFINITY);
+                        prim.push(-1i64);
+                        u.push(0.0f32);
+                        v.push(0.0f32);
+                    }
+                }
+            }
+            (t, prim, u, v)
+        });
+        namedtuple(py, &HITS, "Hits")?.call1((
+            PyArray1::from_vec(py, t),
+            PyArray1::from_vec(py, prim),
+            PyArray1::from_vec(py, u),
+            PyArray1::from_vec(py, v),
+        ))
+    }
+
+    /// Whether each ray hits anything with t_min <= t <= t_max, as a bool array (each ray
+    /// stops at the first hit found).
+    #[pyo3(signature = (origins, directions, t_min=None, t_max=None), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf)")]
+    fn occluded<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        t_min: Option<&Bound<'py, PyAny>>,
+        t_max: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let rays = ray_args(origins, directions, t_min, t_max)?;
+        let pool = self.pool()?;
+        let hit = py.detach(|| pool.install(|| self.tree.occluded_batch(&rays)));
+        Ok(PyArray1::from_vec(py, hit))
+    }
+
+    /// How many faces each ray hits with t_min <= t <= t_max (int64), each face once. A ray
+    /// through an edge or vertex shared by several faces may count more than one of them.
+    #[pyo3(signature = (origins, directions, t_min=None, t_max=None), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf)")]
+    fn count_hits<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        t_min: Option<&Bound<'py, PyAny>>,
+        t_max: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyArray1<i64>>> {
+        let rays = ray_args(origins, directions, t_min, t_max)?;
+        let pool = self.pool()?;
+        let tree = &self.tree;
+        let counts: Vec<i64> = py.detach(|| {
+            pool.install(|| {
+                rays.par_iter()
+                    .with_min_len(64)
+                    .map_init(Vec::new, |buf, r| {
+                        all_hits::all_hits(tree, r, buf);
+                        buf.len() as i64
+                    })
+                    .collect()
+            })
+        });
+        Ok(PyArray1::from_vec(py, counts))
+    }
+
+    /// Every face each ray hits with t_min <= t <= t_max, each face once, as
+    /// AllHits(t, prim, u, v, offsets). The hits of ray i
+    /// are t[offsets[i]:offsets[i+1]] (and the same slice of prim, u, v), nearest first, ties
+    /// by face index; offsets has R + 1 entries. max_hits keeps only the nearest that many of
+    /// each ray. AllHits.ray gives the ray index of each hit.
+    #[pyo3(signature = (origins, directions, t_min=None, t_max=None, max_hits=None), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf, max_hits=None)")]
+    fn intersect_all<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        t_min: Option<&Bound<'py, PyAny>>,
+        t_max: Option<&Bound<'py, PyAny>>,
+        max_hits: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let max_hits = match options::int_arg(max_hits, "max_hits")? {
+            None => None,
+            Some(m) if m >= 0 => Some(m as usize),
+            Some(m) => {
+                return Err(PyValueError::new_err(format!(
+                    "max_hits must be at least 0 (or None for all), got {m}"
+                )))
+            }
+        };
+        let rays = ray_args(origins, directions, t_min, t_max)?;
+        self.all_hits(py, rays, max_hits, Walk::Tree)
+    }
+
+    /// The brute-force oracle for tests: intersect_all's answer computed by testing every
+    /// face of every ray, without the tree.
+    #[pyo3(signature = (origins, directions, t_min=None, t_max=None))]
+    fn _brute_force_all<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        t_min: Option<&Bound<'py, PyAny>>,
+        t_max: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let rays = ray_args(origins, directions, t_min, t_max)?;
+        self.all_hits(py, rays, None, Walk::Brute)
+    }
+
+    /// The tree, its build options and timings as bytes (the .sahkd file format).
+    fn to_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
+        let bytes = py.detach(|| format::to_bytes(&self.tree, &self.meta));
+        PyBytes::new(py, &bytes)
+    }
+
+    /// Writes the tree to a file, to be read back by sahkd.load.
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        py.detach(|| std::fs::write(&path, format::to_bytes(&self.tree, &self.meta)))?;
+        Ok(())
+    }
+
+    /// Pickling: the tree travels as its bytes and is checked again when unpickled.
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        let load = py.import("sahkd")?.getattr("from_bytes")?;
+        let bytes = self.to_bytes(py);
+        PyTuple::new(py, [load, PyTuple::new(py, [bytes])?.into_any()])
+    }
+}
+
+fn tree_from_bytes(bytes: &[u8]) -> Result<PyKdTree, String> {
+    let (tree, meta) = format::from_bytes(bytes)?;
+    Ok(PyKdTree::from_tree(tree, meta))
+}
+
+/// Reads a tree written by KdTree.to_bytes (or pickled); raises ValueError if the data is
+/// not a valid tree.
+#[pyfunction]
+fn from_bytes(py: Python<'_>, data: PyBackedBytes) -> PyResult<PyKdTree> {
+    py.detach(|| tree_from_bytes(&data))
+        .map_err(|e| PyValueError::new_err(format!("cannot read sahkd tree: {e}")))
+}
+
+/// Reads a tree saved by KdTree.save; raises OSError if the file cannot be read and
+/// ValueError if it is not a valid tree file.
+#[pyfunction]
+fn load(py: Python<'_>, path: PathBuf) -> PyResult<PyKdTree> {
+    let bytes = py.detach(|| std::fs::read(&path))?;
+    py.detach(|| tree_from_bytes(&bytes))
+        .map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))
+}
+
+/// SAH kd-trees for ray casting (the Rust core of the sahkd package).
+#[pymodule]
+fn _sahkd(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyKdTree>()?;
+    m.add_function(wrap_pyfunction!(from_bytes, m)?)?;
+    m.add_function(wrap_pyfunction!(load, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

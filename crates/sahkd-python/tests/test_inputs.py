@@ -1,0 +1,128 @@
+"""Bad input raises ValueError or TypeError naming what is wrong; it never crashes."""
+
+import numpy as np
+import pytest
+
+import sahkd
+
+V = np.array([[0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], np.float32)
+F = np.array([[0, 1, 2], [0, 2, 3]], np.int32)
+O = np.array([[0.5, 0.5, 0]], np.float32)
+D = np.array([[0, 0, 1]], np.float32)
+
+
+def with_value(a, index, value):
+    a = a.astype(np.float64).copy()
+    a[index] = value
+    return a
+
+
+@pytest.mark.parametrize(
+    "vertices, faces, error, message",
+    [
+        (V[:, :2], F, ValueError, r"vertices must have shape \(V, 3\), got \(4, 2\)"),
+        (V.ravel(), F, ValueError, r"vertices must have shape \(V, 3\), got \(12,\)"),
+        (V[None], F, ValueError, r"vertices must have shape \(V, 3\), got \(1, 4, 3\)"),
+        (V, F[:, :2], ValueError, r"faces must have shape \(F, 3\), got \(2, 2\)"),
+        (V, np.zeros((2, 4), np.int32), ValueError, r"faces must have shape \(F, 3\)"),
+        (with_value(V, (2, 1), np.nan), F, ValueError, r"vertices\[2\] = \(1, NaN, 1\) is not finite"),
+        (with_value(V, (3, 0), np.inf), F, ValueError, r"vertices\[3\] .* is not finite"),
+        (with_value(V, (1, 2), 1e300), F, ValueError, r"vertices\[1\] .* not finite in float32"),
+        (V, np.array([[0, 1, 4], [0, 2, 3]]), ValueError, r"faces\[0\] refers to vertex 4, but there are only 4 vertices"),
+        (V, np.array([[0, 1, 2], [0, -1, 3]]), ValueError, r"faces\[1\] refers to vertex -1"),
+        (V, np.array([[0, 1, 2], [0, 2, 2**40]], np.uint64), ValueError, r"refers to vertex 1099511627776"),
+        (V.astype(np.int64), F, TypeError, r"vertices must be a float32 or float64 array, got dtype int64"),
+        (V.astype(np.float16), F, TypeError, r"vertices must be a float32 or float64 array, got dtype float16"),
+        (V.astype(np.complex64), F, TypeError, r"vertices must be a float32 or float64 array"),
+        (V.astype(object), F, TypeError, r"vertices must be a float32 or float64 array, got dtype object"),
+        (V, F.astype(np.float64), TypeError, r"faces must be an integer array, got dtype float64"),
+        (V, F.astype(bool), TypeError, r"faces must be an integer array, got dtype bool"),
+        ("not an array", F, TypeError, r"vertices must be a float32 or float64 array, got dtype <U12"),
+        (np.zeros(4, [("x", "f4"), ("y", "f4"), ("z", "f4")]), F, TypeError, r"vertices must be a plain numeric array"),
+        ([[0, 0, 1], [1, 0]], F, TypeError, r"vertices must be a numpy array or array-like"),
+    ],
+)
+def test_bad_meshes_are_refused_clearly(vertices, faces, error, message):
+    with pytest.raises(error, match=message):
+        sahkd.KdTree(vertices, faces)
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, message",
+    [
+        (dict(algorithm="fast"), ValueError, r"algorithm must be one of 'level', 'sweep', 'naive', got 'fast'"),
+        (dict(axes="x"), ValueError, r"axes must be one of 'longest', 'all'"),
+        (dict(counting="tree"), ValueError, r"counting must be one of 'scan', 'space-tree'"),
+        (dict(threads=0), ValueError, r"threads must be at least 1"),
+        (dict(threads=-2), ValueError, r"threads must be at least 1 .* got -2"),
+        (dict(threads="two"), TypeError, r"threads must be an integer or None, got str"),
+        (dict(threads=1.5), TypeError, r"threads must be an integer or None, got float"),
+        (dict(threads=True), TypeError, r"threads must be an integer or None, not a bool"),
+        (dict(algorithm=1), TypeError, r"algorithm must be a string, got int"),
+        (dict(axes=["all"]), TypeError, r"axes must be a string, got list"),
+        (dict(clip="yes"), TypeError, r"clip must be True or False, got str"),
+        (dict(traversal=0), ValueError, r"traversal must be a positive finite number"),
+        (dict(intersection=float("nan")), ValueError, r"intersection must be a positive finite number"),
+        (dict(empty_bonus=1.5), ValueError, r"empty_bonus must be in \(0, 1\]"),
+        (dict(leaf_size=-1), ValueError, r"leaf_size must be in 0..="),
+        (dict(leaf_size=2.5), TypeError, r"leaf_size must be an integer"),
+        (dict(max_depth=61), ValueError, r"max_depth must be in 0..=60"),
+        (dict(max_depth=True), TypeError, r"max_depth must be an integer, not a bool"),
+        (dict(max_duplication=0.5), ValueError, r"max_duplication must be a finite number of at least 1"),
+        (dict(traversal="fast"), TypeError, r"traversal must be a number"),
+        (dict(travesal=10, colour=1), TypeError, r"unexpected keyword argument\(s\) 'travesal', 'colour'; the cost options are traversal, intersection"),
+    ],
+)
+def test_bad_options_are_refused_clearly(kwargs, error, message):
+    with pytest.raises(error, match=message):
+        sahkd.KdTree(V, F, **kwargs)
+
+
+def test_good_options_are_accepted():
+    tree = sahkd.KdTree(
+        V, F, algorithm="SWEEP", axes="all", counting="space_tree", clip=np.False_, threads=np.int64(2),
+        traversal=10, intersection=25.0, empty_bonus=1, leaf_size=0, max_depth=None,
+        max_duplication=2,
+    )  # fmt: skip
+    assert tree.stats["counting"] == "space-tree" and tree.stats["algorithm"] == "sweep"
+    assert tree.stats["clip"] is False and tree.stats["threads"] == 2
+
+
+@pytest.mark.parametrize(
+    "origins, directions, kwargs, error, message",
+    [
+        (O[:, :2], D, {}, ValueError, r"origins must have shape \(R, 3\), got \(1, 2\)"),
+        (O, D[0], {}, ValueError, r"directions must have shape \(R, 3\), got \(3,\)"),
+        (np.repeat(O, 2, 0), D, {}, ValueError, r"same number of rays, got 2 and 1"),
+        (with_value(O, (0, 0), np.nan), D, {}, ValueError, r"origins\[0\] = \(NaN, 0.5, 0\) is not finite"),
+        (O, with_value(D, (0, 2), -np.inf), {}, ValueError, r"directions\[0\] .* is not finite"),
+        (O.astype(np.int32), D, {}, TypeError, r"origins must be a float32 or float64 array, got dtype int32"),
+        (O, D, dict(t_min=np.nan), ValueError, r"t_min is not finite"),
+        (O, D, dict(t_min=np.inf), ValueError, r"t_min is not finite"),
+        (O, D, dict(t_max=np.nan), ValueError, r"t_max is NaN"),
+        (O, D, dict(t_max=np.array([1.0, 2.0])), ValueError, r"t_max must be a scalar or have shape \(1,\) like the rays, got \(2,\)"),
+        (O, D, dict(t_max=np.array([[1.0]])), ValueError, r"t_max must be a scalar or have shape \(1,\)"),
+        (O, D, dict(t_min=np.array([np.nan])), ValueError, r"t_min\[0\] is not finite"),
+        (O, D, dict(t_min="0"), TypeError, r"t_min must be a number or an array of numbers"),
+    ],
+)
+def test_bad_rays_are_refused_clearly(origins, directions, kwargs, error, message):
+    tree = sahkd.KdTree(V, F)
+    for query in (tree.intersect, tree.occluded, tree.count_hits, tree.intersect_all):
+        with pytest.raises(error, match=message):
+            query(origins, directions, **kwargs)
+
+
+def test_bad_max_hits_is_refused_clearly():
+    tree = sahkd.KdTree(V, F)
+    with pytest.raises(TypeError, match="max_hits must be an integer or None, got str"):
+        tree.intersect_all(O, D, max_hits="3")
+    with pytest.raises(ValueError, match="max_hits must be at least 0"):
+        tree.intersect_all(O, D, max_hits=-1)
+
+
+def test_infinite_t_max_and_integer_ranges_are_fine():
+    tree = sahkd.KdTree(V, F)
+    assert tree.intersect(O, D, t_min=0, t_max=np.inf).prim[0] >= 0
+    assert tree.occluded(O, D, t_min=np.array([0]), t_max=np.array([2])).tolist() == [True]
+    assert tree.occluded(O, D, t_min=np.float32(0), t_max=0.5).tolist() == [False]
