@@ -119,7 +119,7 @@ impl KdTree {
     ) -> KdTree {
         for n in &nodes {
             if n.is_leaf() {
-                let (a, b) = (n.first() as usize, (n.first() + n.count()) as usize);
+                let (a, b) = (n.first() as usize, n.first() as usize + n.count() as usize);
                 if b <= refs.len() {
                     refs[a..b].sort_unstable();
                 }
@@ -152,7 +152,8 @@ impl KdTree {
     }
     /// The triangle indices of a leaf.
     pub fn leaf_refs(&self, leaf: &Node) -> &[u32] {
-        &self.refs[leaf.first() as usize..(leaf.first() + leaf.count()) as usize]
+        let first = leaf.first() as usize;
+        &self.refs[first..first + leaf.count() as usize]
     }
 
     /// Calls `f(node_index, node, box, depth)` for every node, depth first, left before right.

@@ -2,6 +2,7 @@
 
 use super::KdTree;
 use crate::clip;
+use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::{Aabb, Vec3};
 
 /// Triangles checked for completeness: all of them up to this count, a fixed sample above.
@@ -23,24 +24,39 @@ fn check_structure(tree: &KdTree) -> Result<(), String> {
     if nodes.is_empty() {
         return Err("the tree has no root node".into());
     }
-    // Children after their parent rules out cycles, and in-range children make the walk
-    // below safe to index.
+    // Children after their parent rules out cycles, in-range children make the walk below
+    // safe to index, and one parent per node makes it a tree (not a DAG walked exponentially).
+    let mut parents = vec![0u8; nodes.len()];
     for (i, node) in nodes.iter().enumerate() {
-        if !node.is_leaf() && (node.left() as usize <= i || node.left() as usize + 1 >= nodes.len())
-        {
+        if node.is_leaf() {
+            continue;
+        }
+        let left = node.left() as usize;
+        if left <= i || left + 1 >= nodes.len() {
             return Err(format!(
-                "node {i} has children at {} and {}, not after it and within the {} nodes",
-                node.left(),
-                node.left() + 1,
+                "node {i} has children at {left} and {}, not after it and within the {} nodes",
+                left + 1,
                 nodes.len()
             ));
+        }
+        for child in [left, left + 1] {
+            parents[child] += 1;
+            if parents[child] > 1 {
+                return Err(format!("node {child} has more than one parent"));
+            }
         }
     }
     let mut seen = vec![false; nodes.len()];
     let mut reached = 0usize;
     let mut failure = None;
-    tree.visit(|i, node, bounds, _| {
+    tree.visit(|i, node, bounds, depth| {
         if failure.is_some() {
+            return;
+        }
+        if depth > MAX_DEPTH_CAP {
+            failure = Some(format!(
+                "node {i} lies at depth {depth}, past the cap of {MAX_DEPTH_CAP}"
+            ));
             return;
         }
         let i = i as usize;
@@ -128,4 +144,102 @@ fn check_completeness(tree: &KdTree) -> Result<(), String> {
 
 fn shrink(b: &Aabb, by: f32) -> Aabb {
     Aabb::new(b.lo + Vec3::splat(by), b.hi - Vec3::splat(by))
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::geometry::{triangle_bounds, Triangle, Vec3};
+    use crate::tree::{KdTree, Node};
+
+    /// Two triangles, one each side of x = 1, under a hand-made split at x = 1.
+    fn two_triangles() -> Vec<Triangle> {
+        vec![
+            [
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(0.9, 0.0, 0.0),
+                Vec3::new(0.0, 1.0, 1.0),
+            ],
+            [
+                Vec3::new(1.1, 0.0, 0.0),
+                Vec3::new(2.0, 0.0, 0.0),
+                Vec3::new(2.0, 1.0, 1.0),
+            ],
+        ]
+    }
+
+    fn tree(nodes: Vec<Node>, refs: Vec<u32>) -> KdTree {
+        let tris = two_triangles();
+        let bounds = triangle_bounds(&tris[0]).union(triangle_bounds(&tris[1]));
+        KdTree::from_parts(tris, bounds, nodes, refs)
+    }
+
+    #[test]
+    fn a_correct_hand_made_tree_passes() {
+        let t = tree(
+            vec![
+                Node::interior(0, 1.0, 1),
+                Node::leaf(0, 1),
+                Node::leaf(1, 1),
+            ],
+            vec![0, 1],
+        );
+        assert_eq!(t.validate(), Ok(()));
+    }
+
+    #[test]
+    fn a_missing_reference_is_found() {
+        let t = tree(
+            vec![
+                Node::interior(0, 1.0, 1),
+                Node::leaf(0, 1),
+                Node::leaf(1, 0),
+            ],
+            vec![0],
+        );
+        let e = t.validate().unwrap_err();
+        assert!(
+            e.contains("triangle 1") && e.contains("not referenced"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn broken_structure_is_found() {
+        let cases = [
+            (
+                vec![
+                    Node::interior(0, 5.0, 1),
+                    Node::leaf(0, 1),
+                    Node::leaf(1, 1),
+                ],
+                "outside its box",
+            ),
+            (
+                vec![
+                    Node::interior(0, 1.0, 1),
+                    Node::leaf(0, 1),
+                    Node::leaf(1, 2),
+                ],
+                "past the end",
+            ),
+            (
+                vec![Node::interior(0, 1.0, 0), Node::leaf(0, 1)],
+                "not after it",
+            ),
+            (
+                vec![
+                    Node::interior(0, 1.0, 1),
+                    Node::interior(1, 0.5, 2),
+                    Node::leaf(0, 1),
+                    Node::leaf(1, 1),
+                ],
+                "more than one parent",
+            ),
+            (vec![Node::leaf(0, 1), Node::leaf(1, 1)], "not reachable"),
+        ];
+        for (nodes, expected) in cases {
+            let e = tree(nodes, vec![0, 1]).validate().unwrap_err();
+            assert!(e.contains(expected), "{e} (expected '{expected}')");
+        }
+    }
 }
