@@ -73,11 +73,26 @@ pub(super) fn push_box(out: &mut Vec<Event>, axis: usize, b: &Aabb, prim: u32) {
     }
 }
 
-/// Appends to `out` the merge of the sorted lists `a` (long) and `b` (short, usually a few
-/// re-clipped primitives): runs of `a` are found by binary search and copied whole, so the
-/// cost is a memcpy of `a` plus `O(|b| log |a|)`.
+/// Appends to `out` the merge of the sorted lists `a` and `b` (usually a few re-clipped
+/// primitives). When `b` is short, runs of `a` are found by binary search and copied whole,
+/// so the cost is a memcpy of `a` plus `O(|b| log |a|)`; otherwise a plain merge.
 pub(super) fn merge_into(out: &mut Vec<Event>, mut a: &[Event], b: &[Event]) {
     out.reserve(a.len() + b.len());
+    if b.len() * 16 > a.len() {
+        let mut b = b;
+        while let (Some(&x), Some(&y)) = (a.first(), b.first()) {
+            if x < y {
+                out.push(x);
+                a = &a[1..];
+            } else {
+                out.push(y);
+                b = &b[1..];
+            }
+        }
+        out.extend_from_slice(a);
+        out.extend_from_slice(b);
+        return;
+    }
     for &e in b {
         let run = a.partition_point(|&x| x < e);
         out.extend_from_slice(&a[..run]);
@@ -195,17 +210,20 @@ mod tests {
     }
 
     #[test]
-    fn merge_interleaves_short_list_into_long() {
-        let a: Vec<Event> = (0..10u32).map(|i| event(i as f32, START, i)).collect();
-        let b = vec![
-            event(-1.0, END, 20),
-            event(3.0, END, 21),
-            event(9.5, PLANAR, 22),
-        ];
-        let mut out = vec![];
-        merge_into(&mut out, &a, &b);
-        let mut expected = [a.clone(), b.clone()].concat();
-        expected.sort_unstable();
-        assert_eq!(out, expected);
+    fn merge_interleaves_short_and_long_lists() {
+        for long in [10u32, 100] {
+            let a: Vec<Event> = (0..long).map(|i| event(i as f32, START, i)).collect();
+            let b = vec![
+                event(-1.0, END, 200),
+                event(3.0, END, 201),
+                event(9.5, PLANAR, 202),
+                event(1e9, START, 203),
+            ];
+            let mut out = vec![event(-5.0, START, 300)];
+            merge_into(&mut out, &a, &b);
+            let mut expected = [vec![event(-5.0, START, 300)], a.clone(), b.clone()].concat();
+            expected.sort_unstable();
+            assert_eq!(out, expected);
+        }
     }
 }

@@ -5,7 +5,7 @@
 //! `p` are the primitives with `lo < p`; `R` starts at `n` and drops by the ends and planars
 //! at or before `p`. The planars at `p` are `P`.
 
-use super::events::{key_of, kind, pos_key, pos_of, Event, END, PLANAR, START};
+use super::events::{key_of, kind, pos_key, pos_of, Event, END, PLANAR};
 use crate::build::Axes;
 use crate::cost::CostModel;
 use crate::geometry::Aabb;
@@ -76,13 +76,18 @@ fn sweep_axis(
     let mut i = 0;
     while i < events.len() {
         let key = pos_key(events[i]);
-        let mut count = [0u32; 4];
+        // Ends (low half) and planars (high half) of the group, counted in one register so
+        // that the hot loop does no stores; starts are the rest of the group.
+        let group_start = i;
+        let mut packed = 0u64;
         while i < events.len() && pos_key(events[i]) == key {
-            count[kind(events[i]) as usize] += 1;
+            let k = kind(events[i]);
+            packed += (k == END) as u64 | ((k == PLANAR) as u64) << 32;
             i += 1;
         }
-        let planar = count[PLANAR as usize];
-        above -= count[END as usize] + planar;
+        let (ends, planar) = (packed as u32, (packed >> 32) as u32);
+        let starts = (i - group_start) as u32 - ends - planar;
+        above -= ends + planar;
         if key > lo_key && key < hi_key {
             let pos = pos_of(key);
             let candidate = if planar == 0 {
@@ -111,7 +116,7 @@ fn sweep_axis(
                 *best = Some(candidate);
             }
         }
-        below += count[START as usize] + planar;
+        below += starts + planar;
     }
 }
 
