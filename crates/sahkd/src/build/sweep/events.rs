@@ -102,6 +102,25 @@ pub(super) fn merge_into(out: &mut Vec<Event>, mut a: &[Event], b: &[Event]) {
     out.extend_from_slice(a);
 }
 
+/// Merges the sorted `b` into the sorted tail `list[start..]`, in place: from the back, so
+/// that no event of `list` is overwritten before it is moved.
+pub(super) fn merge_in_place(list: &mut Vec<Event>, start: usize, b: &[Event]) {
+    let mut i = list.len();
+    list.resize(list.len() + b.len(), 0);
+    let mut j = b.len();
+    let mut w = list.len();
+    while j > 0 {
+        w -= 1;
+        if i > start && list[i - 1] > b[j - 1] {
+            i -= 1;
+            list[w] = list[i];
+        } else {
+            j -= 1;
+            list[w] = b[j];
+        }
+    }
+}
+
 /// Sorts events whose primitive indices increase in input order, by position and kind only:
 /// a stable LSD radix sort on the upper 34 bits then yields the full (position, kind, prim)
 /// order. Measured about 4x faster than `sort_unstable` on the 1.7 M events per axis of the
@@ -224,6 +243,10 @@ mod tests {
             let mut expected = [vec![event(-5.0, START, 300)], a.clone(), b.clone()].concat();
             expected.sort_unstable();
             assert_eq!(out, expected);
+            let mut in_place = vec![event(-5.0, START, 300)];
+            in_place.extend_from_slice(&a);
+            merge_in_place(&mut in_place, 1, &b);
+            assert_eq!(in_place, expected);
         }
     }
 }

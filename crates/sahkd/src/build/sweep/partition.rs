@@ -29,7 +29,6 @@ const BOTH: u8 = 3;
 pub(super) struct Workspace {
     pub arena: [Vec<Event>; 3],
     tmp_left: Vec<Event>,
-    tmp_right: Vec<Event>,
     new_left: [Vec<Event>; 3],
     new_right: [Vec<Event>; 3],
     side: Vec<u8>,
@@ -63,8 +62,7 @@ impl Workspace {
         let peak_events = arena.iter().map(Vec::len).sum();
         Workspace {
             arena,
-            tmp_left: Vec::new(),
-            tmp_right: scratch,
+            tmp_left: scratch,
             new_left: Default::default(),
             new_right: Default::default(),
             side: vec![NEITHER; boxes.len()],
@@ -102,7 +100,6 @@ impl Workspace {
     /// Bytes of event storage at the peak (the stacks plus the scratch lists).
     pub fn peak_bytes(&self) -> usize {
         let scratch = self.tmp_left.capacity()
-            + self.tmp_right.capacity()
             + self.new_left.iter().map(Vec::capacity).sum::<usize>()
             + self.new_right.iter().map(Vec::capacity).sum::<usize>();
         (self.peak_events + scratch) * std::mem::size_of::<Event>()
@@ -202,39 +199,45 @@ impl Workspace {
     /// Splits the top node's events on `axis` (from `start`) stably into the children's,
     /// merges in the re-clipped straddlers' events, and writes right then left in place of
     /// the parent. Returns the lengths (left, right).
+    ///
+    /// The right child's events are compacted in place (the write cursor never passes the
+    /// read cursor); only the left child's go through a scratch list.
     fn split_axis(&mut self, axis: usize, start: usize, clip: bool) -> (usize, usize) {
-        let parent = &self.arena[axis][start..];
-        if self.tmp_left.len() < parent.len() {
-            self.tmp_left.resize(parent.len(), 0);
-            self.tmp_right.resize(parent.len(), 0);
+        let list = &mut self.arena[axis];
+        let len = list.len() - start;
+        if self.tmp_left.len() < len {
+            self.tmp_left.resize(len, 0);
         }
-        let (tl, tr) = (
-            &mut self.tmp_left[..parent.len()],
-            &mut self.tmp_right[..parent.len()],
-        );
+        let tl = &mut self.tmp_left[..len];
+        let parent = &mut list[start..];
+        let side = &self.side[..];
         let (mut nl, mut nr) = (0, 0);
         // Branch-free: write to both sides, advance the cursors the event belongs to.
-        for &e in parent {
-            let s = self.side[prim(e)];
+        for i in 0..len {
+            let e = parent[i];
+            let s = side[prim(e)];
             tl[nl] = e;
             nl += (s & LEFT) as usize;
-            tr[nr] = e;
+            parent[nr] = e;
             nr += (s >> 1) as usize;
         }
-        let list = &mut self.arena[axis];
-        list.truncate(start);
         let (new_l, new_r) = (&mut self.new_left[axis], &mut self.new_right[axis]);
-        if clip && !(new_l.is_empty() && new_r.is_empty()) {
-            new_l.sort_unstable();
+        let clipped = clip && !(new_l.is_empty() && new_r.is_empty());
+        if clipped {
             new_r.sort_unstable();
-            events::merge_into(list, &tr[..nr], new_r);
-            events::merge_into(list, &tl[..nl], new_l);
-            (nl + new_l.len(), nr + new_r.len())
-        } else {
-            list.extend_from_slice(&tr[..nr]);
-            list.extend_from_slice(&tl[..nl]);
-            (nl, nr)
+            list.truncate(start + nr);
+            events::merge_in_place(list, start, new_r);
+            nr += new_r.len();
         }
+        list.truncate(start + nr);
+        if clipped {
+            new_l.sort_unstable();
+            events::merge_into(list, &tl[..nl], new_l);
+            nl += new_l.len();
+        } else {
+            list.extend_from_slice(&tl[..nl]);
+        }
+        (nl, nr)
     }
 }
 
