@@ -50,19 +50,20 @@ pub(super) fn best_split(
     let mut best = None;
     match axes {
         Axes::All => {
-            for (axis, list) in events.iter().enumerate() {
-                sweep_axis(list, axis, node, n, cost, &mut best);
+            for axis in 0..3 {
+                sweep(events[axis], axis, node, n, cost, &mut best);
             }
         }
         Axes::Longest => {
             let axis = node.longest_axis();
-            sweep_axis(events[axis], axis, node, n, cost, &mut best);
+            sweep(events[axis], axis, node, n, cost, &mut best);
         }
     }
     best
 }
 
-fn sweep_axis(
+/// Sweeps one axis, with the axis a constant so that the cost's index arithmetic folds.
+fn sweep(
     events: &[Event],
     axis: usize,
     node: &Aabb,
@@ -70,6 +71,21 @@ fn sweep_axis(
     cost: &CostModel,
     best: &mut Option<Split>,
 ) {
+    match axis {
+        0 => sweep_axis::<0>(events, node, n, cost, best),
+        1 => sweep_axis::<1>(events, node, n, cost, best),
+        _ => sweep_axis::<2>(events, node, n, cost, best),
+    }
+}
+
+fn sweep_axis<const AXIS: usize>(
+    events: &[Event],
+    node: &Aabb,
+    n: u32,
+    cost: &CostModel,
+    best: &mut Option<Split>,
+) {
+    let axis = AXIS;
     // Candidates must lie strictly inside the node; compare keys, not floats.
     let (lo_key, hi_key) = (key_of(node.lo[axis]), key_of(node.hi[axis]));
     let (mut below, mut above) = (0u32, n);
