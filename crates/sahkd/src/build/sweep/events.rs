@@ -123,8 +123,8 @@ pub(super) fn merge_in_place(list: &mut Vec<Event>, start: usize, b: &[Event]) {
 
 /// Sorts events whose primitive indices increase in input order, by position and kind only:
 /// a stable LSD radix sort on the upper 34 bits then yields the full (position, kind, prim)
-/// order. Measured about 4x faster than `sort_unstable` on the 1.7 M events per axis of the
-/// Dragon.
+/// order. On the Dragon (1.7 M events per axis) the root's events are made and sorted in
+/// about 140 ms this way against about 200 ms with `sort_unstable`.
 pub(super) fn sort_prim_ordered(events: &mut Vec<Event>, scratch: &mut Vec<Event>) {
     const DIGITS: [(u32, u32); 3] = [(PRIM_BITS, 11), (PRIM_BITS + 11, 11), (PRIM_BITS + 22, 12)];
     if events.len() < 256 {
