@@ -103,22 +103,30 @@ pub(super) fn merge_into(out: &mut Vec<Event>, mut a: &[Event], b: &[Event]) {
 }
 
 /// Merges the sorted `b` into the sorted tail `list[start..]`, in place: from the back, so
-/// that no event of `list` is overwritten before it is moved.
+/// that no event of `list` is overwritten before it is moved. As in [`merge_into`], runs of
+/// `list` are found by binary search and moved whole when `b` is short.
 pub(super) fn merge_in_place(list: &mut Vec<Event>, start: usize, b: &[Event]) {
     let mut i = list.len();
+    let galloping = b.len() * 16 <= i - start;
     list.resize(list.len() + b.len(), 0);
-    let mut j = b.len();
     let mut w = list.len();
-    while j > 0 {
-        w -= 1;
-        if i > start && list[i - 1] > b[j - 1] {
-            i -= 1;
-            list[w] = list[i];
+    for &e in b.iter().rev() {
+        let run_start = if galloping {
+            start + list[start..i].partition_point(|&x| x < e)
         } else {
-            j -= 1;
-            list[w] = b[j];
-        }
+            let mut r = i;
+            while r > start && list[r - 1] > e {
+                r -= 1;
+            }
+            r
+        };
+        list.copy_within(run_start..i, w - (i - run_start));
+        w -= i - run_start;
+        i = run_start;
+        w -= 1;
+        list[w] = e;
     }
+    debug_assert_eq!(w, i);
 }
 
 /// Sorts events whose primitive indices increase in input order, by position and kind only:

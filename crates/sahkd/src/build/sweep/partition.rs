@@ -8,7 +8,7 @@
 //! on, straddlers' events are dropped from the split and re-made from their boxes clipped to
 //! each child; these few are sorted and merged into the stable split.
 
-use super::events::{self, kind, pos_key, prim, Event, END, PLANAR, START};
+use super::events::{self, kind, pos_key, prim, Event, END};
 use super::search::Split;
 use crate::clip::clipped_bounds;
 use crate::geometry::{Aabb, Triangle};
@@ -166,34 +166,39 @@ impl Workspace {
 
     /// Sets `side` for every primitive of the node from its events on the split axis, and
     /// lists the straddlers.
+    ///
+    /// Starts come before their ends: a start left of the plane marks a tentative straddler,
+    /// which its end confirms (end right of the plane) or turns into left only. Event kinds
+    /// come in no predictable order, so the decision is a table lookup, not a branch.
     fn classify(&mut self, start: usize, split: &Split) {
-        let plane = events::key_of(split.pos);
+        const KEEP: u8 = 4;
         let planar_side = if split.planar_left { LEFT } else { RIGHT };
-        self.straddlers.clear();
-        let side = &mut self.side;
-        for &e in &self.arena[split.axis][start..] {
-            let (key, p) = (pos_key(e), prim(e));
-            match kind(e) {
-                // Starts come before their ends: a start left of the plane is tentatively a
-                // straddler until its end shows otherwise.
-                START => side[p] = if key >= plane { RIGHT } else { BOTH },
-                END => {
-                    if key <= plane {
-                        side[p] = LEFT;
-                    } else if side[p] == BOTH {
-                        self.straddlers.push(p as u32);
-                    }
-                }
-                _ => {
-                    debug_assert_eq!(kind(e), PLANAR);
-                    side[p] = match key.cmp(&plane) {
-                        std::cmp::Ordering::Less => LEFT,
-                        std::cmp::Ordering::Greater => RIGHT,
-                        std::cmp::Ordering::Equal => planar_side,
-                    };
-                }
-            }
+        // By kind (end, planar, start), then by the event's place: before, on, after the plane.
+        let table: [[u8; 3]; 4] = [
+            [LEFT, LEFT, KEEP],
+            [LEFT, planar_side, RIGHT],
+            [BOTH, RIGHT, RIGHT],
+            [KEEP; 3],
+        ];
+        let plane = events::key_of(split.pos);
+        let events = &self.arena[split.axis][start..];
+        if self.straddlers.len() < events.len() / 2 {
+            self.straddlers.resize(events.len() / 2, 0);
         }
+        let (side, straddlers) = (&mut self.side[..], &mut self.straddlers[..]);
+        let mut count = 0;
+        for &e in events {
+            let (key, p, k) = (pos_key(e), prim(e), kind(e));
+            let place = (key >= plane) as usize + (key > plane) as usize;
+            let old = side[p];
+            let new = table[k as usize][place];
+            side[p] = if new == KEEP { old } else { new };
+            // An end after the plane whose start was before it: a straddler. Straddlers have
+            // two events, so there are at most half as many as events.
+            straddlers[count] = p as u32;
+            count += (k == END && place == 2 && old == BOTH) as usize;
+        }
+        self.straddlers.truncate(count);
     }
 
     /// Splits the top node's events on `axis` (from `start`) stably into the children's,
