@@ -249,3 +249,94 @@ impl Workspace {
 fn count_prims(events: &[Event]) -> usize {
     events.iter().filter(|&&e| kind(e) != END).count()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{triangle_bounds, Vec3};
+
+    /// Children's event lists equal the lists made and sorted afresh from the boxes the shared
+    /// semantics give each child's primitives.
+    #[test]
+    fn split_lists_equal_freshly_sorted_children() {
+        let mut seed = 3u64;
+        let mut unit = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 40) as f32 / (1u64 << 24) as f32 * 8.0).round() / 8.0
+        };
+        let mut checked = 0;
+        for round in 0..200 {
+            let n = 2 + round % 40;
+            let tris: Vec<Triangle> = (0..n)
+                .map(|_| {
+                    let mut corner = || Vec3::new(unit(), unit(), unit());
+                    [corner(), corner(), corner()]
+                })
+                .collect();
+            let boxes: Vec<Aabb> = tris.iter().map(triangle_bounds).collect();
+            let bounds = boxes.iter().fold(Aabb::EMPTY, |b, &x| b.union(x));
+            let axis = round % 3;
+            let pos = boxes[round % n].lo[axis];
+            if !(pos > bounds.lo[axis] && pos < bounds.hi[axis]) {
+                continue;
+            }
+            let planar_left = round % 2 == 0;
+            let on_left = |b: &Aabb| b.lo[axis] < pos || (b.hi[axis] == pos && planar_left);
+            let on_right = |b: &Aabb| b.hi[axis] > pos || (b.lo[axis] == pos && !planar_left);
+            let split = Split {
+                axis,
+                pos,
+                cost: 0.0,
+                planar_left,
+                n_left: boxes.iter().filter(|b| on_left(b)).count() as u32,
+                n_right: boxes.iter().filter(|b| on_right(b)).count() as u32,
+            };
+            let (lbox, rbox) = bounds.split(axis, pos);
+            checked += 1;
+            for clip in [false, true] {
+                let mut work = Workspace::new(&boxes);
+                let children =
+                    work.split(&[0; 3], &bounds, &split, clip.then_some(tris.as_slice()));
+                for (child_box, seg, end, keep) in [
+                    (
+                        &lbox,
+                        children.left,
+                        None,
+                        &on_left as &dyn Fn(&Aabb) -> bool,
+                    ),
+                    (&rbox, children.right, Some(children.left), &on_right),
+                ] {
+                    let mut want: [Vec<Event>; 3] = Default::default();
+                    for (i, b) in boxes.iter().enumerate() {
+                        if !keep(b) {
+                            continue;
+                        }
+                        let straddles = b.lo[axis] < pos && b.hi[axis] > pos;
+                        let b = if clip && straddles {
+                            clipped_bounds(&tris[i], child_box)
+                        } else {
+                            *b
+                        };
+                        if b.is_empty() {
+                            continue;
+                        }
+                        for (a, list) in want.iter_mut().enumerate() {
+                            events::push_box(list, a, &b, i as u32);
+                        }
+                    }
+                    for a in 0..3 {
+                        want[a].sort_unstable();
+                        let got = match end {
+                            None => &work.arena[a][seg[a]..],
+                            Some(e) => &work.arena[a][seg[a]..e[a]],
+                        };
+                        assert_eq!(got, &want[a][..], "round {round}, clip {clip}, axis {a}");
+                    }
+                }
+            }
+        }
+        assert!(checked > 100, "only {checked} splits checked");
+    }
+}
