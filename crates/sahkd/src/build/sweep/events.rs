@@ -191,7 +191,7 @@ mod tests {
 
     #[test]
     fn event_order_is_position_then_kind_then_prim() {
-        let mut es = vec![
+        let mut es = [
             event(1.0, START, 0),
             event(1.0, END, 5),
             event(0.5, START, 9),

@@ -50,8 +50,8 @@ pub(super) fn best_split(
     let mut best = None;
     match axes {
         Axes::All => {
-            for axis in 0..3 {
-                sweep(events[axis], axis, node, n, cost, &mut best);
+            for (axis, list) in events.iter().enumerate() {
+                sweep(list, axis, node, n, cost, &mut best);
             }
         }
         Axes::Longest => {
