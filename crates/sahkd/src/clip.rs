@@ -12,12 +12,13 @@ const MAX_VERTS: usize = 9;
 /// Bounds of the part of `tri` inside the closed box `b`, or an empty box when the triangle
 /// misses it. Computed in f64 and rounded outwards to f32, then limited to `b`.
 pub fn clipped_bounds(tri: &Triangle, b: &Aabb) -> Aabb {
-    let mut poly = [[0f64; 3]; MAX_VERTS];
+    // Two polygon buffers used in turn, so that no plane copies a whole polygon.
+    let mut bufs = [[[0f64; 3]; MAX_VERTS]; 2];
     let mut n = 3;
     for (k, v) in tri.iter().enumerate() {
-        poly[k] = v.0.map(|c| c as f64);
+        bufs[0][k] = v.0.map(|c| c as f64);
     }
-    let mut next = [[0f64; 3]; MAX_VERTS];
+    let mut cur = 0;
     for axis in 0..3 {
         for (bound, keep_below) in [(b.lo[axis] as f64, false), (b.hi[axis] as f64, true)] {
             let inside = |p: &[f64; 3]| {
@@ -27,12 +28,22 @@ pub fn clipped_bounds(tri: &Triangle, b: &Aabb) -> Aabb {
                     p[axis] >= bound
                 }
             };
+            // A plane that cuts nothing leaves the polygon as it is: skip it.
+            if bufs[cur][..n].iter().all(inside) {
+                continue;
+            }
+            let (first, second) = bufs.split_at_mut(1);
+            let (poly, next) = if cur == 0 {
+                (&first[0], &mut second[0])
+            } else {
+                (&second[0], &mut first[0])
+            };
             let mut m = 0;
             for i in 0..n {
-                let (p, q) = (poly[i], poly[(i + 1) % n]);
-                let (pin, qin) = (inside(&p), inside(&q));
+                let (p, q) = (&poly[i], &poly[if i + 1 == n { 0 } else { i + 1 }]);
+                let (pin, qin) = (inside(p), inside(q));
                 if pin {
-                    next[m] = p;
+                    next[m] = *p;
                     m += 1;
                 }
                 if pin != qin && m < MAX_VERTS {
@@ -50,12 +61,12 @@ pub fn clipped_bounds(tri: &Triangle, b: &Aabb) -> Aabb {
             if n == 0 {
                 return Aabb::EMPTY;
             }
-            std::mem::swap(&mut poly, &mut next);
+            cur = 1 - cur;
         }
     }
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
-    for p in &poly[..n] {
+    for p in &bufs[cur][..n] {
         for a in 0..3 {
             lo[a] = lo[a].min(p[a]);
             hi[a] = hi[a].max(p[a]);

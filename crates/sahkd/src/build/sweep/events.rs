@@ -1,0 +1,260 @@
+//! Split events packed into one `u64` each, so that sorting and merging them is integer work.
+//!
+//! Layout, high to low bits: 32 bits of the position (an order-preserving image of the
+//! `f32`), 2 bits of kind (end < planar < start), 30 bits of primitive index. Integer order is
+//! therefore the total order (position, kind, primitive) of Wald & Havran's sweep, made
+//! deterministic by the primitive index. Each axis keeps its own list, so the axis is implicit.
+
+use crate::geometry::Aabb;
+
+pub(super) type Event = u64;
+
+/// The primitive's box ends here.
+pub(super) const END: u64 = 0;
+/// The primitive's box is flat on this axis and lies in this plane.
+pub(super) const PLANAR: u64 = 1;
+/// The primitive's box starts here.
+pub(super) const START: u64 = 2;
+
+const PRIM_BITS: u32 = 30;
+const PRIM_MASK: u64 = (1 << PRIM_BITS) - 1;
+
+/// Order-preserving image of a finite `f32` (`-0.0` is taken as `0.0`, as `==` does).
+#[inline(always)]
+pub(super) fn key_of(pos: f32) -> u32 {
+    let bits = (pos + 0.0).to_bits();
+    if bits & 0x8000_0000 != 0 {
+        !bits
+    } else {
+        bits | 0x8000_0000
+    }
+}
+
+/// Inverse of [`key_of`].
+#[inline(always)]
+pub(super) fn pos_of(key: u32) -> f32 {
+    f32::from_bits(if key & 0x8000_0000 != 0 {
+        key & 0x7fff_ffff
+    } else {
+        !key
+    })
+}
+
+#[inline(always)]
+pub(super) fn event(pos: f32, kind: u64, prim: u32) -> Event {
+    ((key_of(pos) as u64) << 32) | (kind << PRIM_BITS) | prim as u64
+}
+
+#[inline(always)]
+pub(super) fn pos_key(e: Event) -> u32 {
+    (e >> 32) as u32
+}
+
+#[inline(always)]
+pub(super) fn kind(e: Event) -> u64 {
+    (e >> PRIM_BITS) & 3
+}
+
+#[inline(always)]
+pub(super) fn prim(e: Event) -> usize {
+    (e & PRIM_MASK) as usize
+}
+
+/// Appends the events of `prim`'s box on `axis`: one planar event for a flat box, else a
+/// start and an end.
+#[inline]
+pub(super) fn push_box(out: &mut Vec<Event>, axis: usize, b: &Aabb, prim: u32) {
+    let (lo, hi) = (b.lo[axis], b.hi[axis]);
+    if lo == hi {
+        out.push(event(lo, PLANAR, prim));
+    } else {
+        out.push(event(lo, START, prim));
+        out.push(event(hi, END, prim));
+    }
+}
+
+/// Appends to `out` the merge of the sorted lists `a` and `b` (usually a few re-clipped
+/// primitives). When `b` is short, runs of `a` are found by binary search and copied whole,
+/// so the cost is a memcpy of `a` plus `O(|b| log |a|)`; otherwise a plain merge.
+pub(super) fn merge_into(out: &mut Vec<Event>, mut a: &[Event], b: &[Event]) {
+    out.reserve(a.len() + b.len());
+    if b.len() * 16 > a.len() {
+        let mut b = b;
+        while let (Some(&x), Some(&y)) = (a.first(), b.first()) {
+            if x < y {
+                out.push(x);
+                a = &a[1..];
+            } else {
+                out.push(y);
+                b = &b[1..];
+            }
+        }
+        out.extend_from_slice(a);
+        out.extend_from_slice(b);
+        return;
+    }
+    for &e in b {
+        let run = a.partition_point(|&x| x < e);
+        out.extend_from_slice(&a[..run]);
+        out.push(e);
+        a = &a[run..];
+    }
+    out.extend_from_slice(a);
+}
+
+/// Merges the sorted `b` into the sorted tail `list[start..]`, in place: from the back, so
+/// that no event of `list` is overwritten before it is moved. As in [`merge_into`], runs of
+/// `list` are found by binary search and moved whole when `b` is short.
+pub(super) fn merge_in_place(list: &mut Vec<Event>, start: usize, b: &[Event]) {
+    let mut i = list.len();
+    let galloping = b.len() * 16 <= i - start;
+    list.resize(list.len() + b.len(), 0);
+    let mut w = list.len();
+    for &e in b.iter().rev() {
+        let run_start = if galloping {
+            start + list[start..i].partition_point(|&x| x < e)
+        } else {
+            let mut r = i;
+            while r > start && list[r - 1] > e {
+                r -= 1;
+            }
+            r
+        };
+        list.copy_within(run_start..i, w - (i - run_start));
+        w -= i - run_start;
+        i = run_start;
+        w -= 1;
+        list[w] = e;
+    }
+    debug_assert_eq!(w, i);
+}
+
+/// Sorts events whose primitive indices increase in input order, by position and kind only:
+/// a stable LSD radix sort on the upper 34 bits then yields the full (position, kind, prim)
+/// order. On the Dragon (1.7 M events per axis) the root's events are made and sorted in
+/// about 140 ms this way against about 200 ms with `sort_unstable`.
+pub(super) fn sort_prim_ordered(events: &mut Vec<Event>, scratch: &mut Vec<Event>) {
+    const DIGITS: [(u32, u32); 3] = [(PRIM_BITS, 11), (PRIM_BITS + 11, 11), (PRIM_BITS + 22, 12)];
+    if events.len() < 256 {
+        events.sort_unstable();
+        return;
+    }
+    scratch.clear();
+    scratch.resize(events.len(), 0);
+    for (shift, width) in DIGITS {
+        let mask = (1u64 << width) - 1;
+        let mut offsets = vec![0usize; 1 << width];
+        for &e in events.iter() {
+            offsets[((e >> shift) & mask) as usize] += 1;
+        }
+        let mut sum = 0;
+        for o in offsets.iter_mut() {
+            let c = *o;
+            *o = sum;
+            sum += c;
+        }
+        for &e in events.iter() {
+            let d = ((e >> shift) & mask) as usize;
+            scratch[offsets[d]] = e;
+            offsets[d] += 1;
+        }
+        std::mem::swap(events, scratch);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_preserve_float_order_and_round_trip() {
+        let xs = [
+            f32::MIN,
+            -1e30,
+            -1.5,
+            -f32::MIN_POSITIVE,
+            0.0,
+            f32::MIN_POSITIVE,
+            1e-30,
+            1.0,
+            1.5,
+            3e38,
+        ];
+        for w in xs.windows(2) {
+            assert!(key_of(w[0]) < key_of(w[1]), "{} vs {}", w[0], w[1]);
+        }
+        for x in xs {
+            assert_eq!(pos_of(key_of(x)).to_bits(), x.to_bits());
+        }
+        assert_eq!(key_of(-0.0), key_of(0.0));
+    }
+
+    #[test]
+    fn event_order_is_position_then_kind_then_prim() {
+        let mut es = [
+            event(1.0, START, 0),
+            event(1.0, END, 5),
+            event(0.5, START, 9),
+            event(1.0, PLANAR, 3),
+            event(1.0, END, 2),
+        ];
+        es.sort_unstable();
+        let decoded: Vec<(f32, u64, usize)> = es
+            .iter()
+            .map(|&e| (pos_of(pos_key(e)), kind(e), prim(e)))
+            .collect();
+        assert_eq!(
+            decoded,
+            vec![
+                (0.5, START, 9),
+                (1.0, END, 2),
+                (1.0, END, 5),
+                (1.0, PLANAR, 3),
+                (1.0, START, 0)
+            ]
+        );
+    }
+
+    #[test]
+    fn radix_sort_agrees_with_comparison_sort() {
+        let mut seed = 7u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            seed >> 33
+        };
+        let mut events = Vec::new();
+        for prim in 0..5000u32 {
+            // Few distinct positions, so that kinds and prims decide many comparisons.
+            let pos = (next() % 40) as f32 - 20.0;
+            events.push(event(pos, next() % 3, prim));
+        }
+        let mut expected = events.clone();
+        expected.sort_unstable();
+        sort_prim_ordered(&mut events, &mut Vec::new());
+        assert_eq!(events, expected);
+    }
+
+    #[test]
+    fn merge_interleaves_short_and_long_lists() {
+        for long in [10u32, 100] {
+            let a: Vec<Event> = (0..long).map(|i| event(i as f32, START, i)).collect();
+            let b = vec![
+                event(-1.0, END, 200),
+                event(3.0, END, 201),
+                event(9.5, PLANAR, 202),
+                event(1e9, START, 203),
+            ];
+            let mut out = vec![event(-5.0, START, 300)];
+            merge_into(&mut out, &a, &b);
+            let mut expected = [vec![event(-5.0, START, 300)], a.clone(), b.clone()].concat();
+            expected.sort_unstable();
+            assert_eq!(out, expected);
+            let mut in_place = vec![event(-5.0, START, 300)];
+            in_place.extend_from_slice(&a);
+            merge_in_place(&mut in_place, 1, &b);
+            assert_eq!(in_place, expected);
+        }
+    }
+}

@@ -1,0 +1,342 @@
+//! Splitting a node's sorted events into its children's, without re-sorting.
+//!
+//! One pass over the split axis classifies every primitive as left only, right only or both
+//! (a straddler). Each axis's list is then split stably in one pass, so both children's lists
+//! stay sorted. Straddlers with clip off keep their events in both children: their boxes
+//! intersected with a child box differ from the stored ones only beyond the child's
+//! boundary, where no candidate lies, so every count the sweep takes is the same. With clip
+//! on, straddlers' events are dropped from the split and re-made from their boxes clipped to
+//! each child; these few are sorted and merged into the stable split.
+
+use super::events::{self, kind, pos_key, prim, Event, END};
+use super::search::Split;
+use crate::clip::clipped_bounds;
+use crate::geometry::{Aabb, Triangle};
+
+/// Where a primitive goes: bit 0 left, bit 1 right. A straddler re-made by clipping is
+/// `NEITHER` during the stable split.
+const NEITHER: u8 = 0;
+const LEFT: u8 = 1;
+const RIGHT: u8 = 2;
+const BOTH: u8 = 3;
+
+/// The event lists of all pending nodes and the scratch space to split them, reused for the
+/// whole build so that the hot loop does not allocate.
+///
+/// Each axis's events live in one stack (`arena`): a node's events are the top segment,
+/// from its `start` to the end. Splitting a node replaces its segment by the right child's
+/// events followed by the left child's, so the left child (built first) is on top.
+pub(super) struct Workspace {
+    pub arena: [Vec<Event>; 3],
+    tmp_left: Vec<Event>,
+    new_left: [Vec<Event>; 3],
+    new_right: [Vec<Event>; 3],
+    side: Vec<u8>,
+    straddlers: Vec<u32>,
+    peak_events: usize,
+}
+
+/// The start of a node's segment in each axis's stack.
+pub(super) type Segment = [usize; 3];
+
+/// The children made by [`Workspace::split`]: their segments and primitive counts.
+pub(super) struct Children {
+    pub left: Segment,
+    pub right: Segment,
+    pub n_left: u32,
+    pub n_right: u32,
+}
+
+impl Workspace {
+    /// The root's events: every box's events on each axis, sorted once.
+    pub fn new(boxes: &[Aabb]) -> Workspace {
+        let mut arena: [Vec<Event>; 3] = Default::default();
+        let mut scratch = Vec::new();
+        for (axis, list) in arena.iter_mut().enumerate() {
+            list.reserve(boxes.len() * 2);
+            for (i, b) in boxes.iter().enumerate() {
+                events::push_box(list, axis, b, i as u32);
+            }
+            events::sort_prim_ordered(list, &mut scratch);
+        }
+        let peak_events = arena.iter().map(Vec::len).sum();
+        Workspace {
+            arena,
+            tmp_left: scratch,
+            new_left: Default::default(),
+            new_right: Default::default(),
+            side: vec![NEITHER; boxes.len()],
+            straddlers: Vec::new(),
+            peak_events,
+        }
+    }
+
+    /// The events of the node whose segment starts at `seg` (the top of the stacks).
+    pub fn events(&self, seg: &Segment) -> [&[Event]; 3] {
+        [
+            &self.arena[0][seg[0]..],
+            &self.arena[1][seg[1]..],
+            &self.arena[2][seg[2]..],
+        ]
+    }
+
+    /// Appends the primitives of the top node to `out`.
+    pub fn collect_prims(&self, seg: &Segment, out: &mut Vec<u32>) {
+        out.extend(
+            self.arena[0][seg[0]..]
+                .iter()
+                .filter(|&&e| kind(e) != END)
+                .map(|&e| prim(e) as u32),
+        );
+    }
+
+    /// Drops the top node's events.
+    pub fn pop(&mut self, seg: &Segment) {
+        for (list, &s) in self.arena.iter_mut().zip(seg) {
+            list.truncate(s);
+        }
+    }
+
+    /// Bytes of event storage at the peak (the stacks plus the scratch lists).
+    pub fn peak_bytes(&self) -> usize {
+        let scratch = self.tmp_left.capacity()
+            + self.new_left.iter().map(Vec::capacity).sum::<usize>()
+            + self.new_right.iter().map(Vec::capacity).sum::<usize>();
+        (self.peak_events + scratch) * std::mem::size_of::<Event>()
+            + self.side.len()
+            + self.straddlers.capacity() * 4
+    }
+
+    /// Replaces the top node (segment `seg`, box `node`) by its children at `split`.
+    /// With `clip`, straddlers are re-clipped from their `triangles` to each child's box.
+    pub fn split(
+        &mut self,
+        seg: &Segment,
+        node: &Aabb,
+        split: &Split,
+        clip: Option<&[Triangle]>,
+    ) -> Children {
+        self.classify(seg[split.axis], split);
+        let (mut n_left, mut n_right) = (split.n_left, split.n_right);
+        if let Some(triangles) = clip {
+            let (left_box, right_box) = node.split(split.axis, split.pos);
+            for list in self.new_left.iter_mut().chain(self.new_right.iter_mut()) {
+                list.clear();
+            }
+            for &s in &self.straddlers {
+                self.side[s as usize] = NEITHER;
+                let tri = &triangles[s as usize];
+                for (child_box, lists, count) in [
+                    (&left_box, &mut self.new_left, &mut n_left),
+                    (&right_box, &mut self.new_right, &mut n_right),
+                ] {
+                    let b = clipped_bounds(tri, child_box);
+                    if b.is_empty() {
+                        *count -= 1;
+                    } else {
+                        for (axis, list) in lists.iter_mut().enumerate() {
+                            events::push_box(list, axis, &b, s);
+                        }
+                    }
+                }
+            }
+        }
+        let mut left = [0; 3];
+        let mut right = [0; 3];
+        for axis in 0..3 {
+            let (l, r) = self.split_axis(axis, seg[axis], clip.is_some());
+            right[axis] = seg[axis];
+            left[axis] = seg[axis] + r;
+            debug_assert_eq!(self.arena[axis].len(), seg[axis] + r + l);
+        }
+        let total: usize = self.arena.iter().map(Vec::len).sum();
+        self.peak_events = self.peak_events.max(total);
+        debug_assert_eq!(count_prims(&self.arena[0][left[0]..]), n_left as usize);
+        debug_assert_eq!(
+            count_prims(&self.arena[0][right[0]..left[0]]),
+            n_right as usize
+        );
+        Children {
+            left,
+            right,
+            n_left,
+            n_right,
+        }
+    }
+
+    /// Sets `side` for every primitive of the node from its events on the split axis, and
+    /// lists the straddlers.
+    ///
+    /// Starts come before their ends: a start left of the plane marks a tentative straddler,
+    /// which its end confirms (end right of the plane) or turns into left only. Event kinds
+    /// come in no predictable order, so the decision is a table lookup, not a branch.
+    fn classify(&mut self, start: usize, split: &Split) {
+        const KEEP: u8 = 4;
+        let planar_side = if split.planar_left { LEFT } else { RIGHT };
+        // By kind (end, planar, start), then by the event's place: before, on, after the plane.
+        let table: [[u8; 3]; 4] = [
+            [LEFT, LEFT, KEEP],
+            [LEFT, planar_side, RIGHT],
+            [BOTH, RIGHT, RIGHT],
+            [KEEP; 3],
+        ];
+        let plane = events::key_of(split.pos);
+        let events = &self.arena[split.axis][start..];
+        if self.straddlers.len() < events.len() / 2 {
+            self.straddlers.resize(events.len() / 2, 0);
+        }
+        let (side, straddlers) = (&mut self.side[..], &mut self.straddlers[..]);
+        let mut count = 0;
+        for &e in events {
+            let (key, p, k) = (pos_key(e), prim(e), kind(e));
+            let place = (key >= plane) as usize + (key > plane) as usize;
+            let old = side[p];
+            let new = table[k as usize][place];
+            side[p] = if new == KEEP { old } else { new };
+            // An end after the plane whose start was before it: a straddler. Straddlers have
+            // two events, so there are at most half as many as events.
+            straddlers[count] = p as u32;
+            count += (k == END && place == 2 && old == BOTH) as usize;
+        }
+        self.straddlers.truncate(count);
+    }
+
+    /// Splits the top node's events on `axis` (from `start`) stably into the children's,
+    /// merges in the re-clipped straddlers' events, and writes right then left in place of
+    /// the parent. Returns the lengths (left, right).
+    ///
+    /// The right child's events are compacted in place (the write cursor never passes the
+    /// read cursor); only the left child's go through a scratch list.
+    fn split_axis(&mut self, axis: usize, start: usize, clip: bool) -> (usize, usize) {
+        let list = &mut self.arena[axis];
+        let len = list.len() - start;
+        if self.tmp_left.len() < len {
+            self.tmp_left.resize(len, 0);
+        }
+        let tl = &mut self.tmp_left[..len];
+        let parent = &mut list[start..];
+        let side = &self.side[..];
+        let (mut nl, mut nr) = (0, 0);
+        // Branch-free: write to both sides, advance the cursors the event belongs to.
+        for i in 0..len {
+            let e = parent[i];
+            let s = side[prim(e)];
+            tl[nl] = e;
+            nl += (s & LEFT) as usize;
+            parent[nr] = e;
+            nr += (s >> 1) as usize;
+        }
+        let (new_l, new_r) = (&mut self.new_left[axis], &mut self.new_right[axis]);
+        let clipped = clip && !(new_l.is_empty() && new_r.is_empty());
+        if clipped {
+            new_r.sort_unstable();
+            list.truncate(start + nr);
+            events::merge_in_place(list, start, new_r);
+            nr += new_r.len();
+        }
+        list.truncate(start + nr);
+        if clipped {
+            new_l.sort_unstable();
+            events::merge_into(list, &tl[..nl], new_l);
+            nl += new_l.len();
+        } else {
+            list.extend_from_slice(&tl[..nl]);
+        }
+        (nl, nr)
+    }
+}
+
+fn count_prims(events: &[Event]) -> usize {
+    events.iter().filter(|&&e| kind(e) != END).count()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{triangle_bounds, Vec3};
+
+    /// Children's event lists equal the lists made and sorted afresh from the boxes the shared
+    /// semantics give each child's primitives.
+    #[test]
+    fn split_lists_equal_freshly_sorted_children() {
+        let mut seed = 3u64;
+        let mut unit = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 40) as f32 / (1u64 << 24) as f32 * 8.0).round() / 8.0
+        };
+        let mut checked = 0;
+        for round in 0..200 {
+            let n = 2 + round % 40;
+            let tris: Vec<Triangle> = (0..n)
+                .map(|_| {
+                    let mut corner = || Vec3::new(unit(), unit(), unit());
+                    [corner(), corner(), corner()]
+                })
+                .collect();
+            let boxes: Vec<Aabb> = tris.iter().map(triangle_bounds).collect();
+            let bounds = boxes.iter().fold(Aabb::EMPTY, |b, &x| b.union(x));
+            let axis = round % 3;
+            let pos = boxes[round % n].lo[axis];
+            if !(pos > bounds.lo[axis] && pos < bounds.hi[axis]) {
+                continue;
+            }
+            let planar_left = round % 2 == 0;
+            let on_left = |b: &Aabb| b.lo[axis] < pos || (b.hi[axis] == pos && planar_left);
+            let on_right = |b: &Aabb| b.hi[axis] > pos || (b.lo[axis] == pos && !planar_left);
+            let split = Split {
+                axis,
+                pos,
+                cost: 0.0,
+                planar_left,
+                n_left: boxes.iter().filter(|b| on_left(b)).count() as u32,
+                n_right: boxes.iter().filter(|b| on_right(b)).count() as u32,
+            };
+            let (lbox, rbox) = bounds.split(axis, pos);
+            checked += 1;
+            for clip in [false, true] {
+                let mut work = Workspace::new(&boxes);
+                let children =
+                    work.split(&[0; 3], &bounds, &split, clip.then_some(tris.as_slice()));
+                for (child_box, seg, end, keep) in [
+                    (
+                        &lbox,
+                        children.left,
+                        None,
+                        &on_left as &dyn Fn(&Aabb) -> bool,
+                    ),
+                    (&rbox, children.right, Some(children.left), &on_right),
+                ] {
+                    let mut want: [Vec<Event>; 3] = Default::default();
+                    for (i, b) in boxes.iter().enumerate() {
+                        if !keep(b) {
+                            continue;
+                        }
+                        let straddles = b.lo[axis] < pos && b.hi[axis] > pos;
+                        let b = if clip && straddles {
+                            clipped_bounds(&tris[i], child_box)
+                        } else {
+                            *b
+                        };
+                        if b.is_empty() {
+                            continue;
+                        }
+                        for (a, list) in want.iter_mut().enumerate() {
+                            events::push_box(list, a, &b, i as u32);
+                        }
+                    }
+                    for a in 0..3 {
+                        want[a].sort_unstable();
+                        let got = match end {
+                            None => &work.arena[a][seg[a]..],
+                            Some(e) => &work.arena[a][seg[a]..e[a]],
+                        };
+                        assert_eq!(got, &want[a][..], "round {round}, clip {clip}, axis {a}");
+                    }
+                }
+            }
+        }
+        assert!(checked > 100, "only {checked} splits checked");
+    }
+}

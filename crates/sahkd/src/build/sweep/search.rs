@@ -1,0 +1,247 @@
+//! The exact SAH search of one node: one sweep per axis over its sorted events.
+//!
+//! Walking the events in order, at each distinct position `p` the running counts are exactly
+//! the shared semantics' `L = #(lo < p)` and `R = #(hi > p)`: starts and planars seen before
+//! `p` are the primitives with `lo < p`; `R` starts at `n` and drops by the ends and planars
+//! at or before `p`. The planars at `p` are `P`.
+
+use super::events::{key_of, kind, pos_key, pos_of, Event, END, PLANAR};
+use crate::build::Axes;
+use crate::cost::CostModel;
+use crate::geometry::Aabb;
+
+/// The cheapest plane of a node.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Split {
+    pub axis: usize,
+    pub pos: f32,
+    pub cost: f32,
+    /// The primitives lying in the plane go left (else right).
+    pub planar_left: bool,
+    /// Primitives on each side, planar ones counted on their side.
+    pub n_left: u32,
+    pub n_right: u32,
+}
+
+impl Split {
+    /// Least cost first, then the smaller position, then the lower axis.
+    #[inline]
+    fn beats(&self, other: &Option<Split>) -> bool {
+        match other {
+            None => self.cost.is_finite(),
+            Some(o) => {
+                self.cost < o.cost
+                    || (self.cost == o.cost
+                        && (self.pos < o.pos || (self.pos == o.pos && self.axis < o.axis)))
+            }
+        }
+    }
+}
+
+/// The best split of a node of `n` primitives whose events on each axis are `events`, or
+/// `None` when no candidate plane lies strictly inside `node`.
+pub(super) fn best_split(
+    events: [&[Event]; 3],
+    node: &Aabb,
+    n: u32,
+    axes: Axes,
+    cost: &CostModel,
+) -> Option<Split> {
+    let mut best = None;
+    match axes {
+        Axes::All => {
+            for (axis, list) in events.iter().enumerate() {
+                sweep(list, axis, node, n, cost, &mut best);
+            }
+        }
+        Axes::Longest => {
+            let axis = node.longest_axis();
+            sweep(events[axis], axis, node, n, cost, &mut best);
+        }
+    }
+    best
+}
+
+/// Sweeps one axis, with the axis a constant so that the cost's index arithmetic folds.
+fn sweep(
+    events: &[Event],
+    axis: usize,
+    node: &Aabb,
+    n: u32,
+    cost: &CostModel,
+    best: &mut Option<Split>,
+) {
+    match axis {
+        0 => sweep_axis::<0>(events, node, n, cost, best),
+        1 => sweep_axis::<1>(events, node, n, cost, best),
+        _ => sweep_axis::<2>(events, node, n, cost, best),
+    }
+}
+
+fn sweep_axis<const AXIS: usize>(
+    events: &[Event],
+    node: &Aabb,
+    n: u32,
+    cost: &CostModel,
+    best: &mut Option<Split>,
+) {
+    let axis = AXIS;
+    // Candidates must lie strictly inside the node; compare keys, not floats.
+    let (lo_key, hi_key) = (key_of(node.lo[axis]), key_of(node.hi[axis]));
+    let (mut below, mut above) = (0u32, n);
+    let mut i = 0;
+    while i < events.len() {
+        let key = pos_key(events[i]);
+        // Ends (low half) and planars (high half) of the group, counted in one register so
+        // that the hot loop does no stores; starts are the rest of the group.
+        let group_start = i;
+        let mut packed = 0u64;
+        while i < events.len() && pos_key(events[i]) == key {
+            let k = kind(events[i]);
+            packed += (k == END) as u64 | ((k == PLANAR) as u64) << 32;
+            i += 1;
+        }
+        let (ends, planar) = (packed as u32, (packed >> 32) as u32);
+        let starts = (i - group_start) as u32 - ends - planar;
+        above -= ends + planar;
+        if key > lo_key && key < hi_key {
+            let pos = pos_of(key);
+            let candidate = if planar == 0 {
+                Split {
+                    axis,
+                    pos,
+                    cost: cost.split_cost(node, axis, pos, below, above),
+                    planar_left: true,
+                    n_left: below,
+                    n_right: above,
+                }
+            } else {
+                let left = cost.split_cost(node, axis, pos, below + planar, above);
+                let right = cost.split_cost(node, axis, pos, below, above + planar);
+                let planar_left = left <= right;
+                Split {
+                    axis,
+                    pos,
+                    cost: if planar_left { left } else { right },
+                    planar_left,
+                    n_left: below + if planar_left { planar } else { 0 },
+                    n_right: above + if planar_left { 0 } else { planar },
+                }
+            };
+            if candidate.beats(best) {
+                *best = Some(candidate);
+            }
+        }
+        below += starts + planar;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::events::{push_box, sort_prim_ordered};
+    use super::*;
+    use crate::geometry::Vec3;
+
+    /// Direct O(n^2) search over every candidate with the shared semantics.
+    fn brute(boxes: &[Aabb], node: &Aabb, axes: Axes, cost: &CostModel) -> Option<Split> {
+        let axis_list: Vec<usize> = match axes {
+            Axes::All => vec![0, 1, 2],
+            Axes::Longest => vec![node.longest_axis()],
+        };
+        let mut best: Option<Split> = None;
+        for &a in &axis_list {
+            for b in boxes {
+                for p in [b.lo[a], b.hi[a]] {
+                    if !(p > node.lo[a] && p < node.hi[a]) {
+                        continue;
+                    }
+                    let l = boxes.iter().filter(|b| b.lo[a] < p).count() as u32;
+                    let r = boxes.iter().filter(|b| b.hi[a] > p).count() as u32;
+                    let pl = boxes
+                        .iter()
+                        .filter(|b| b.lo[a] == p && b.hi[a] == p)
+                        .count() as u32;
+                    let cl = cost.split_cost(node, a, p, l + pl, r);
+                    let cr = cost.split_cost(node, a, p, l, r + pl);
+                    let (c, nl, nr) = if cl <= cr {
+                        (cl, l + pl, r)
+                    } else {
+                        (cr, l, r + pl)
+                    };
+                    let better = match &best {
+                        None => c.is_finite(),
+                        Some(o) => (c, p, a) < (o.cost, o.pos, o.axis),
+                    };
+                    if better {
+                        best = Some(Split {
+                            axis: a,
+                            pos: p,
+                            cost: c,
+                            planar_left: cl <= cr,
+                            n_left: nl,
+                            n_right: nr,
+                        });
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn sweep_matches_brute_force_search() {
+        let mut seed = 99u64;
+        let mut rnd = move |k: u64| {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) % k
+        };
+        let cost = CostModel::default();
+        for round in 0..300 {
+            let n = 1 + rnd(60) as usize;
+            // Coordinates on a coarse grid, so that coincident and planar events abound.
+            let mut boxes = Vec::new();
+            for _ in 0..n {
+                let mut lo = Vec3::splat(0.0);
+                let mut hi = Vec3::splat(0.0);
+                for a in 0..3 {
+                    let x = rnd(9) as f32 * 0.5;
+                    let w = if rnd(3) == 0 {
+                        0.0
+                    } else {
+                        rnd(5) as f32 * 0.5
+                    };
+                    lo[a] = x;
+                    hi[a] = x + w;
+                }
+                boxes.push(Aabb::new(lo, hi));
+            }
+            let bounds = boxes.iter().fold(Aabb::EMPTY, |b, &x| b.union(x));
+            // Sometimes a node box tighter than the primitives, as with clip off below the root.
+            let node = if round % 3 == 0 {
+                Aabb::new(bounds.lo + Vec3::splat(0.5), bounds.hi)
+            } else {
+                bounds
+            };
+            let mut lists: [Vec<Event>; 3] = Default::default();
+            for (a, list) in lists.iter_mut().enumerate() {
+                for (i, b) in boxes.iter().enumerate() {
+                    push_box(list, a, b, i as u32);
+                }
+                sort_prim_ordered(list, &mut Vec::new());
+            }
+            for axes in [Axes::All, Axes::Longest] {
+                let got = best_split(
+                    [&lists[0], &lists[1], &lists[2]],
+                    &node,
+                    n as u32,
+                    axes,
+                    &cost,
+                );
+                let want = brute(&boxes, &node, axes, &cost);
+                assert_eq!(got, want, "round {round}, {axes:?}, boxes {boxes:?}");
+            }
+        }
+    }
+}
