@@ -86,3 +86,31 @@ fn bunny_matches_brute_force_on_10000_rays() {
 fn dragon_res3_matches_brute_force_on_10000_rays() {
     real_scene_oracle("dragon_res3.ply");
 }
+
+/// Found by the generated scenes: a ray lying in the root's split plane visits both children,
+/// so pending nodes are not ordered by entry distance and the walk must not stop at the first
+/// one that starts beyond the best hit (here triangle 0, hit on its edge at the same distance
+/// as triangle 5, was missed).
+#[test]
+fn a_ray_in_a_split_plane_finds_ties_in_the_far_child() {
+    let raw: [[[f32; 3]; 3]; 11] = [
+        [[0.25, 0.5, 0.0], [0.25, 0.75, 0.0], [0.75, 0.5, 0.0]],
+        [[0.75, 0.0, 0.0], [0.5, 0.0, 0.5], [0.5, 0.0, 0.75]],
+        [[0.0, 0.75, 0.0], [0.5, 0.25, 0.5], [1.0, 0.75, 0.0]],
+        [[0.5, 1.0, 0.0], [0.5, 0.5, 0.75], [0.25, 0.0, 0.0]],
+        [[0.5, 0.0, 0.25], [0.25, 0.0, 0.75], [0.0, 0.0, 0.0]],
+        [[0.25, 0.0, 0.0], [0.75, 0.0, 0.0], [0.5, 1.25, 0.0]],
+        [[0.0, 0.0, 0.5], [0.0, 0.0, 0.25], [0.0, 0.0, 0.0]],
+        [[0.5, 0.0, 0.0], [0.5, 0.5, 0.75], [0.0, 0.0, 0.0]],
+        [[0.0, 0.5, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 0.0]],
+        [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]],
+        [[0.0, 1.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]],
+    ];
+    let tris: Vec<sahkd::Triangle> = raw.iter().map(|t| t.map(Vec3)).collect();
+    let ray = Ray::new(Vec3::new(0.375, 0.5, -0.375), Vec3::new(1.0, 0.0, 2.0));
+    for options in all_variants() {
+        let tree = build_triangles(tris.clone(), &options).unwrap().tree;
+        let hit = tree.intersect(&ray).expect("the ray hits");
+        assert_eq!((hit.t, hit.prim), (0.1875, 0), "{}", describe(&options));
+    }
+}

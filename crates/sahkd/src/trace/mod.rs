@@ -5,8 +5,8 @@
 //! `t_plane`, and the child on the ray's incoming side is visited first. Rays parallel to a
 //! split plane are routed by their origin (both children when the origin lies in the plane),
 //! so zero direction components never produce NaNs. Leaves test their triangles against the
-//! whole remaining ray `[t_min, best]`, and the walk ends as soon as the next pending node
-//! starts beyond the best hit.
+//! whole remaining ray `[t_min, best]`, and pending nodes that start beyond the best hit are
+//! dropped.
 
 pub mod brute;
 mod triangle;
@@ -200,8 +200,17 @@ impl KdTree {
         let mut best: Option<Hit> = None;
         let mut best_t = ray.t_max;
         loop {
+            // A node that starts beyond the best hit is skipped, not a reason to stop: a ray
+            // lying in a split plane pushes a sibling over its whole interval, so the stack
+            // is not always ordered by entry distance.
             if t0 > best_t {
-                break;
+                if top == 0 {
+                    break;
+                }
+                top -= 1;
+                let p = stack[top];
+                (node_index, t0, t1) = (p.node, p.t0, p.t1);
+                continue;
             }
             counters.node();
             let node = &self.nodes[node_index as usize];
@@ -272,9 +281,7 @@ impl KdTree {
             }
             top -= 1;
             let p = stack[top];
-            node_index = p.node;
-            t0 = p.t0;
-            t1 = p.t1;
+            (node_index, t0, t1) = (p.node, p.t0, p.t1);
         }
         best
     }
