@@ -4,10 +4,8 @@
 //! [--clip on|off|both] bunny dragon_res2 dragon`
 //!
 //! Scenes are read from `$SAHKD_SCENES` or `../shared/scenes` (relative to the workspace).
-//! The binary PLY layout is the one described in that folder's README; this small reader
-//! stands in until the library's reader lands.
 
-use sahkd::{build_triangles, Algorithm, Axes, BuildOptions, Triangle, Vec3};
+use sahkd::{build_triangles, Algorithm, Axes, BuildOptions, Mesh, Triangle};
 use std::path::PathBuf;
 
 fn scenes_dir() -> PathBuf {
@@ -16,51 +14,10 @@ fn scenes_dir() -> PathBuf {
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes"))
 }
 
-/// Reads the scenes' binary little-endian PLY: float x, y, z vertices; uchar-int faces.
 fn load_ply(path: &std::path::Path) -> Result<Vec<Triangle>, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let end = b"end_header\n";
-    let header_len = bytes
-        .windows(end.len())
-        .position(|w| w == end)
-        .ok_or("no end_header")?
-        + end.len();
-    let header = std::str::from_utf8(&bytes[..header_len]).map_err(|e| e.to_string())?;
-    let count = |element: &str| -> Result<usize, String> {
-        header
-            .lines()
-            .find_map(|l| l.strip_prefix(&format!("element {element} ")))
-            .ok_or(format!("no {element} element"))?
-            .trim()
-            .parse()
-            .map_err(|e| format!("{e}"))
-    };
-    let (nv, nf) = (count("vertex")?, count("face")?);
-    let body = &bytes[header_len..];
-    if body.len() < nv * 12 + nf * 13 {
-        return Err("file shorter than its header says".into());
-    }
-    let f32_at = |o: usize| f32::from_le_bytes(body[o..o + 4].try_into().unwrap());
-    let verts: Vec<Vec3> = (0..nv)
-        .map(|i| Vec3::new(f32_at(i * 12), f32_at(i * 12 + 4), f32_at(i * 12 + 8)))
-        .collect();
-    let faces = &body[nv * 12..];
-    (0..nf)
-        .map(|f| {
-            let rec = &faces[f * 13..f * 13 + 13];
-            if rec[0] != 3 {
-                return Err(format!("face {f} is not a triangle"));
-            }
-            let idx = |k: usize| u32::from_le_bytes(rec[1 + 4 * k..5 + 4 * k].try_into().unwrap());
-            let corner = |k: usize| {
-                verts
-                    .get(idx(k) as usize)
-                    .copied()
-                    .ok_or(format!("face {f} index out of range"))
-            };
-            Ok([corner(0)?, corner(1)?, corner(2)?])
-        })
-        .collect()
+    Mesh::load(path)
+        .map(|m| m.corner_triangles())
+        .map_err(|e| e.to_string())
 }
 
 /// CPU time of this thread in milliseconds (Linux; 0 elsewhere): on a shared machine it

@@ -673,36 +673,8 @@ fn scenes_dir() -> Option<PathBuf> {
     dir.is_dir().then_some(dir)
 }
 
-/// Reads the scenes' binary little-endian PLY (float x, y, z vertices; faces as a uchar
-/// count 3 and three int32 indices), the layout /work/shared/scenes/README.md describes.
 fn load_ply(path: &std::path::Path) -> Vec<Triangle> {
-    let bytes = std::fs::read(path).unwrap();
-    let end = b"end_header\n";
-    let header_len = bytes.windows(end.len()).position(|w| w == end).unwrap() + end.len();
-    let header = std::str::from_utf8(&bytes[..header_len]).unwrap();
-    let count = |element: &str| -> usize {
-        let prefix = format!("element {element} ");
-        let line = header.lines().find(|l| l.starts_with(&prefix)).unwrap();
-        line[prefix.len()..].trim().parse().unwrap()
-    };
-    let (nv, nf) = (count("vertex"), count("face"));
-    let body = &bytes[header_len..];
-    assert_eq!(body.len(), nv * 12 + nf * 13, "{}", path.display());
-    let f32_at = |o: usize| f32::from_le_bytes(body[o..o + 4].try_into().unwrap());
-    let verts: Vec<Vec3> = (0..nv)
-        .map(|i| Vec3::new(f32_at(i * 12), f32_at(i * 12 + 4), f32_at(i * 12 + 8)))
-        .collect();
-    let faces = &body[nv * 12..];
-    (0..nf)
-        .map(|f| {
-            let rec = &faces[f * 13..f * 13 + 13];
-            assert_eq!(rec[0], 3);
-            let v = |k: usize| {
-                verts[u32::from_le_bytes(rec[1 + 4 * k..5 + 4 * k].try_into().unwrap()) as usize]
-            };
-            [v(0), v(1), v(2)]
-        })
-        .collect()
+    sahkd::Mesh::load(path).unwrap().corner_triangles()
 }
 
 #[test]
