@@ -1,7 +1,8 @@
 //! The level's candidate planes: one flat array for the whole level. Every (node, axis) pair
 //! that is priced owns a contiguous range of it, laid out by an exclusive scan over the pairs'
-//! capacities (at most two candidates per list entry), so that filling, counting and the
-//! per-node minimum need no search and no second pass.
+//! capacities (two slots per list entry where every candidate is kept, one slot where a sweep
+//! keeps only the pair's best), so that filling, counting and the per-node minimum need no
+//! search and no second pass.
 
 use super::segments::Scatter;
 use crate::cost::CostModel;

@@ -36,6 +36,9 @@ pub(super) trait ListEntry: Copy + Send + Sync + 'static {
     fn with_slot(self, slot: u32) -> Self;
     /// A total order, equal to the list order: no two entries of one level share a key.
     fn key(self) -> u64;
+    /// The key's low bits that only order entries of one reference by slot (below them the
+    /// key is position, and kind for events).
+    const SLOT_KEY_BITS: u32;
     /// Entries of a reference whose extent on the list's axis is `[lo, hi]`.
     fn count(lo: f32, hi: f32) -> u32;
     /// Those entries (the first `count` of the array).
@@ -64,6 +67,7 @@ impl ListEntry for Span {
     fn key(self) -> u64 {
         (ordered(self.lo) as u64) << 32 | self.slot as u64
     }
+    const SLOT_KEY_BITS: u32 = 32;
     #[inline(always)]
     fn count(_lo: f32, _hi: f32) -> u32 {
         1
@@ -119,6 +123,7 @@ impl ListEntry for Event {
     fn key(self) -> u64 {
         self.0
     }
+    const SLOT_KEY_BITS: u32 = SLOT_BITS;
     #[inline(always)]
     fn count(lo: f32, hi: f32) -> u32 {
         if lo == hi {

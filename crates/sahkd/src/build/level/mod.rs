@@ -7,15 +7,24 @@
 //! - per axis, one sorted list of the references' entries (spans or events, see [`entries`]),
 //!   each node's entries a contiguous, sorted segment.
 //!
-//! Each level runs the same phases over those arrays, every one of them a parallel pass over
-//! chunks of a flat array (never one task per node):
-//! 1. candidates: the lo and hi of every reference on the node's axes, strictly inside the node;
+//! Each level runs the same phases over those arrays. No phase is one serial task per node:
+//! a pass runs over chunks of a flat array, or over all (candidate, node) items of the level,
+//! and a node too big for one task (the top levels) is itself split into chunks, with
+//! exclusive scans over the chunks giving each its offsets:
+//! 1. candidates: the lo and hi of every reference on the node's axes, strictly inside the
+//!    node (one slot pair per list entry, holes where a value is not inside);
 //! 2. space trees (space-tree counting only): the implicit interval tree of every node's list;
-//! 3. counting: L, R, P and the SAH cost of every candidate of the level;
-//! 4. decision: each node's cheapest candidate (a segmented min), and the leaf rules;
+//! 3. counting: L, R, P and the SAH cost of every candidate, in one parallel pass over the
+//!    candidate array (space tree, naive) or by one sweep per node and axis (scan, which keeps
+//!    only each pair's best candidate, see [`scan`]);
+//! 4. decision: each node's cheapest candidate (a segmented min: ties to the smaller position,
+//!    then the lower axis), the leaf rules, and the reference budget, checked per level;
 //! 5. partition: leaves write their references out; the other nodes' references, and each
 //!    axis's sorted list, are stably partitioned into the children's segments of the next
 //!    level's arrays (offsets by exclusive scans), so no level ever sorts again.
+//!
+//! Output nodes are written breadth first: a level's nodes are contiguous, and the children of
+//! its split nodes follow it, side by side, in the order of their parents.
 //!
 //! Counts follow the shared semantics of `build/mod.rs`: L = #(lo < p), R = #(hi > p),
 //! P = #(lo == p == hi). With clipping off a reference's box is its triangle's box, not
@@ -174,6 +183,9 @@ where
             .filter(|&k| splits[k].is_none())
             .map(|k| level.refs(k) as usize)
             .sum();
+        // The reference budget, breadth first: the references already in leaves, this level's
+        // leaves and the next level's (before clipping, which only removes) must fit, or the
+        // whole level becomes leaves.
         let next_refs: usize = splits.iter().flatten().map(|s| s.refs as usize).sum();
         if out.refs.len() + leaf_refs + next_refs > ctx.budget {
             splits.iter_mut().for_each(|s| *s = None);

@@ -11,7 +11,10 @@
 //! So a node's candidates are counted by one sweep over its events: O(n) per node. Nodes are
 //! swept in parallel; a large node is itself cut into chunks whose counts-before come from a
 //! prefix sum over the chunks' counts, so that the top levels are as parallel as the rest.
-//! Counting and pricing are one pass here, timed as counting.
+//! Counting, pricing and the per-axis part of the segmented min are one pass here (timed as
+//! counting): each (node, axis) pair leaves only its best candidate in the level's candidate
+//! array, and the decision takes the min over a node's axes. Writing every candidate out to
+//! read it back once costs a quarter of the level's counting time and buys nothing.
 
 use super::candidates::{self, Candidate, Candidates, Counts};
 use super::entries::{Event, END, PLANAR, START};
@@ -40,14 +43,8 @@ pub(super) fn price(
         let s = &level.list_starts[axis];
         &level.lists[axis][s[k] as usize..s[k + 1] as usize]
     };
-    // A node has at most one candidate per event.
-    cands.lay_out(nodes, |axis, k| {
-        if uses[k] & (1 << axis) != 0 {
-            seg(axis, k).len()
-        } else {
-            0
-        }
-    });
+    // One slot per priced (node, axis) pair: its best candidate.
+    cands.lay_out(nodes, |axis, k| (uses[k] >> axis) as usize & 1);
     report.ms.candidates += ms_since(t);
     let t = Instant::now();
     let fill = cands.filler();
@@ -68,22 +65,55 @@ pub(super) fn price(
                     owner: k as u32,
                     cost,
                 };
-                // Safety: this task owns node k's pairs, and writes each slot once.
-                let at = unsafe { fill.first(axis, k) };
-                let write = |i: usize, c: Candidate| unsafe { fill.write(at + i, c) };
-                let n = if events.len() >= PARALLEL_SWEEP {
-                    sweep_chunks(events, &node, &write)
+                let found = if events.len() >= PARALLEL_SWEEP {
+                    sweep_chunks(events, &node)
                 } else {
-                    sweep(events, 0, events.len(), [0; 3], &node, &write)
+                    sweep(events, 0, events.len(), [0; 3], &node)
                 };
-                unsafe { fill.finish(axis, k, n) };
-                priced += n;
+                // Safety: this task owns node k's pairs.
+                unsafe {
+                    let at = fill.first(axis, k);
+                    match found.best {
+                        Some(c) => {
+                            fill.write(at, c);
+                            fill.finish(axis, k, 1);
+                        }
+                        None => fill.finish(axis, k, 0),
+                    }
+                }
+                priced += found.priced;
             }
             priced
         })
         .sum();
     cands.priced = priced;
     report.ms.counting += ms_since(t);
+}
+
+/// What a sweep found: how many candidates it priced and the best of them.
+#[derive(Clone, Copy, Default)]
+struct Found {
+    priced: usize,
+    best: Option<Candidate>,
+}
+
+impl Found {
+    /// The candidate kept: the cheaper, then the smaller position (one axis here).
+    fn offer(&mut self, c: Candidate) {
+        self.priced += 1;
+        match &self.best {
+            Some(b) if !(c.cost < b.cost || (c.cost == b.cost && c.pos < b.pos)) => {}
+            _ => self.best = Some(c),
+        }
+    }
+    fn join(mut self, o: Found) -> Found {
+        let priced = self.priced + o.priced;
+        if let Some(c) = o.best {
+            self.offer(c);
+        }
+        self.priced = priced;
+        self
+    }
 }
 
 /// What a sweep needs to know of its node.
@@ -98,15 +128,8 @@ struct Node<'a> {
 /// Counts and prices the runs that start in `events[from..to]`, where `events` is one node's
 /// segment and `before` the counts of each kind in `events[..from]`. A run may go on past
 /// `to` (to the end of the segment); a run going on at `from` belongs to whoever has its
-/// start. Calls `write(j, candidate)` for j = 0, 1, ...; returns how many.
-fn sweep(
-    events: &[Event],
-    from: usize,
-    to: usize,
-    mut before: [u32; 3],
-    node: &Node,
-    write: &(impl Fn(usize, Candidate) + Sync),
-) -> usize {
+/// start.
+fn sweep(events: &[Event], from: usize, to: usize, mut before: [u32; 3], node: &Node) -> Found {
     let (lo, hi) = (node.bbox.lo[node.axis], node.bbox.hi[node.axis]);
     let mut i = from;
     if i > 0 && i < to {
@@ -116,7 +139,7 @@ fn sweep(
             i += 1;
         }
     }
-    let mut out = 0;
+    let mut found = Found::default();
     while i < to {
         let bits = events[i].pos_bits();
         let mut run = [0u32; 3];
@@ -132,65 +155,46 @@ fn sweep(
                 right: node.n - (before[e] + run[e] + before[pl] + run[pl]),
                 planar: run[pl],
             };
-            let c = candidates::price(node.cost, node.bbox, node.axis, p, node.owner, counts);
-            write(out, c);
-            out += 1;
+            found.offer(candidates::price(
+                node.cost, node.bbox, node.axis, p, node.owner, counts,
+            ));
         }
         for kind in 0..3 {
             before[kind] += run[kind];
         }
     }
-    out
+    found
 }
 
 /// [`sweep`] over a large segment in parallel: each chunk counts its events of each kind and
 /// the runs starting in it inside the node, exclusive prefix sums over the chunks give each
-/// chunk its counts-before and first output slot, and the chunks sweep.
-fn sweep_chunks(
-    events: &[Event],
-    node: &Node,
-    write: &(impl Fn(usize, Candidate) + Sync),
-) -> usize {
-    let (lo, hi) = (node.bbox.lo[node.axis], node.bbox.hi[node.axis]);
-    let tallies: Vec<([u32; 3], usize)> = events
+/// chunk its counts-before, and the chunks sweep; the earlier chunk wins a tie.
+fn sweep_chunks(events: &[Event], node: &Node) -> Found {
+    let kinds: Vec<[u32; 3]> = events
         .par_chunks(CHUNK)
-        .enumerate()
-        .map(|(c, chunk)| {
+        .map(|chunk| {
             let mut kinds = [0u32; 3];
-            let mut runs = 0;
-            let mut prev = if c == 0 {
-                None
-            } else {
-                Some(events[c * CHUNK - 1].pos_bits())
-            };
             for e in chunk {
                 kinds[e.kind() as usize] += 1;
-                if prev != Some(e.pos_bits()) {
-                    let p = e.pos();
-                    runs += (lo < p && p < hi) as usize;
-                    prev = Some(e.pos_bits());
-                }
             }
-            (kinds, runs)
+            kinds
         })
         .collect();
-    let mut starts = Vec::with_capacity(tallies.len());
-    let (mut kinds, mut runs) = ([0u32; 3], 0usize);
-    for (k, r) in &tallies {
-        starts.push((kinds, runs));
+    let mut before = Vec::with_capacity(kinds.len());
+    let mut sum = [0u32; 3];
+    for k in &kinds {
+        before.push(sum);
         for a in 0..3 {
-            kinds[a] += k[a];
+            sum[a] += k[a];
         }
-        runs += r;
     }
-    (0..tallies.len()).into_par_iter().for_each(|c| {
-        let (before, first) = starts[c];
-        let to = ((c + 1) * CHUNK).min(events.len());
-        let shifted = |j: usize, cand: Candidate| write(first + j, cand);
-        let n = sweep(events, c * CHUNK, to, before, node, &shifted);
-        debug_assert_eq!(n, tallies[c].1);
-    });
-    runs
+    (0..kinds.len())
+        .into_par_iter()
+        .map(|c| {
+            let to = ((c + 1) * CHUNK).min(events.len());
+            sweep(events, c * CHUNK, to, before[c], node)
+        })
+        .reduce(Found::default, Found::join)
 }
 
 #[cfg(test)]
@@ -199,8 +203,8 @@ mod tests {
     use crate::build::level::entries::ListEntry;
     use crate::geometry::Vec3;
 
-    /// The chunked sweep of a large node writes the same candidates as the serial one, with
-    /// runs of equal positions crossing chunk boundaries.
+    /// The chunked sweep of a large node finds the same best candidate (and count) as the
+    /// serial one, with runs of equal positions crossing chunk boundaries.
     #[test]
     fn chunked_sweep_equals_serial_sweep() {
         let n = 3 * CHUNK as u32 + 77;
@@ -223,19 +227,13 @@ mod tests {
             cost: &cost,
         };
         let run = |parallel: bool| {
-            let out = std::sync::Mutex::new(vec![None; events.len()]);
-            let write = |j: usize, c: Candidate| {
-                out.lock().unwrap()[j] = Some((c.pos, c.cost, c.refs(), c.planar_left()))
-            };
-            let count = if parallel {
-                sweep_chunks(&events, &node, &write)
+            let f = if parallel {
+                sweep_chunks(&events, &node)
             } else {
-                sweep(&events, 0, events.len(), [0; 3], &node, &write)
+                sweep(&events, 0, events.len(), [0; 3], &node)
             };
-            let out = out.into_inner().unwrap();
-            assert!(out[..count].iter().all(|c| c.is_some()));
-            assert!(out[count..].iter().all(|c| c.is_none()));
-            out
+            let b = f.best.expect("a best candidate");
+            (f.priced, b.pos, b.cost, b.refs(), b.planar_left())
         };
         assert_eq!(run(true), run(false));
     }
