@@ -4,7 +4,7 @@
 //! keeps only the pair's best), so that filling, counting and the per-node minimum need no
 //! search and no second pass.
 
-use super::segments::Scatter;
+use super::segments::{Prefix, Scatter, Tally};
 use crate::cost::CostModel;
 use crate::geometry::Aabb;
 use rayon::prelude::*;
@@ -59,15 +59,20 @@ pub(super) struct Candidates {
 impl Candidates {
     /// Lays out `capacity(axis, k)` slots for every node and axis (0 for pairs not priced).
     /// Each range starts empty-ended at its start; fillers set the ends.
-    pub fn lay_out(&mut self, nodes: usize, capacity: impl Fn(usize, usize) -> usize) {
+    pub fn lay_out(&mut self, nodes: usize, capacity: impl Fn(usize, usize) -> usize + Sync) {
         let mut total = 0usize;
         for (axis, ranges) in self.ranges.iter_mut().enumerate() {
+            let count = |k: usize| Slots(capacity(axis, k));
+            let scan = Prefix::new(nodes, count);
             ranges.clear();
-            ranges.extend((0..nodes).map(|k| {
-                let start = total;
-                total += capacity(axis, k);
-                [start, start]
-            }));
+            let sink = Scatter::tail(ranges, nodes);
+            // Safety: one write per node.
+            scan.visit(nodes, count, |k, before| unsafe {
+                let start = total + before.0;
+                sink.write(k, [start, start]);
+            });
+            unsafe { super::segments::filled(ranges, nodes) };
+            total += scan.total.0;
         }
         self.items.clear();
         super::segments::reserve(&mut self.items, total);
@@ -104,6 +109,18 @@ impl Candidates {
     pub fn bytes(&self) -> usize {
         self.items.capacity() * std::mem::size_of::<Candidate>()
             + self.ranges.iter().map(|r| r.capacity() * 16).sum::<usize>()
+    }
+}
+
+#[derive(Clone, Copy, Default)]
+struct Slots(usize);
+
+impl Tally for Slots {
+    fn add(self, o: Self) -> Self {
+        Slots(self.0 + o.0)
+    }
+    fn restart(self) -> Self {
+        self
     }
 }
 

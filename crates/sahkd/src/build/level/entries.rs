@@ -40,7 +40,15 @@ pub(super) trait ListEntry: Copy + Send + Sync + 'static {
     /// key is position, and kind for events).
     const SLOT_KEY_BITS: u32;
     /// Entries of a reference whose extent on the list's axis is `[lo, hi]`.
-    fn count(lo: f32, hi: f32) -> u32;
+    #[inline(always)]
+    fn count(lo: f32, hi: f32) -> u32 {
+        Self::count_flat(lo == hi)
+    }
+    /// Entries of a reference that is flat (`lo == hi`) on the list's axis, or not.
+    fn count_flat(flat: bool) -> u32;
+    /// What this entry tells of the children its reference goes to at the plane `p`
+    /// (left, right), by the shared rule (see `partition::sides`), where it tells it.
+    fn sides(self, p: f32, planar_left: bool) -> [Option<bool>; 2];
     /// Those entries (the first `count` of the array).
     fn make(lo: f32, hi: f32, slot: u32) -> [Self; 2];
 }
@@ -69,8 +77,16 @@ impl ListEntry for Span {
     }
     const SLOT_KEY_BITS: u32 = 32;
     #[inline(always)]
-    fn count(_lo: f32, _hi: f32) -> u32 {
+    fn count_flat(_flat: bool) -> u32 {
         1
+    }
+    #[inline(always)]
+    fn sides(self, p: f32, planar_left: bool) -> [Option<bool>; 2] {
+        let in_plane = (self.lo == p) & (self.hi == p);
+        [
+            Some((self.lo < p) | (in_plane & planar_left)),
+            Some((self.hi > p) | (in_plane & !planar_left)),
+        ]
     }
     #[inline(always)]
     fn make(lo: f32, hi: f32, slot: u32) -> [Self; 2] {
@@ -125,11 +141,24 @@ impl ListEntry for Event {
     }
     const SLOT_KEY_BITS: u32 = SLOT_BITS;
     #[inline(always)]
-    fn count(lo: f32, hi: f32) -> u32 {
-        if lo == hi {
-            1
-        } else {
-            2
+    fn count_flat(flat: bool) -> u32 {
+        2 - flat as u32
+    }
+    /// A start tells whether `lo < p` (left), an end whether `hi > p` (right), a planar event
+    /// both.
+    #[inline(always)]
+    fn sides(self, p: f32, planar_left: bool) -> [Option<bool>; 2] {
+        let x = self.pos();
+        match self.kind() {
+            START => [Some(x < p), None],
+            END => [None, Some(x > p)],
+            _ => {
+                let in_plane = x == p;
+                [
+                    Some((x < p) | (in_plane & planar_left)),
+                    Some((x > p) | (in_plane & !planar_left)),
+                ]
+            }
         }
     }
     #[inline(always)]

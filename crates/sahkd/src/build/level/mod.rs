@@ -2,8 +2,8 @@
 //!
 //! The tree is built breadth first, one whole level at a time, on flat arrays: a level is
 //! - its nodes (boxes and, per node, a segment of each array below),
-//! - its references in canonical order (`prims`, `ref_boxes`; a reference's index there is its
-//!   *slot*),
+//! - its references in canonical order (`prims`, and `flat`, or `ref_boxes` for the naive
+//!   builder; a reference's index there is its *slot*),
 //! - per axis, one sorted list of the references' entries (spans or events, see [`entries`]),
 //!   each node's entries a contiguous, sorted segment.
 //!
@@ -46,6 +46,7 @@ use crate::cost::CostModel;
 use crate::geometry::{Aabb, Triangle};
 use candidates::Candidates;
 use entries::{Event, ListEntry, Span};
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// How a level counts L, R and P.
@@ -78,8 +79,12 @@ struct Level<E> {
     ref_starts: Vec<u32>,
     /// Segments of each axis's list, one per node (len = nodes + 1; empty without lists).
     list_starts: [Vec<u32>; 3],
-    /// Canonical arrays: the primitive and the box of each reference (slot).
+    /// Canonical arrays: the primitive of each reference (slot), and
     prims: Vec<u32>,
+    /// with sorted lists, the axes on which its box is flat (bit a: `lo == hi` on axis a; the
+    /// rest of the box is in the lists),
+    flat: Vec<u8>,
+    /// without, its box.
     ref_boxes: Vec<Aabb>,
     /// Per axis, the sorted entries; a node's segment is sorted by entry key.
     lists: [Vec<E>; 3],
@@ -95,6 +100,7 @@ impl<E: ListEntry> Level<E> {
             ref_starts: Vec::new(),
             list_starts: Default::default(),
             prims: Vec::new(),
+            flat: Vec::new(),
             ref_boxes: Vec::new(),
             lists: Default::default(),
             sorted,
@@ -117,6 +123,7 @@ impl<E: ListEntry> Level<E> {
                 .map(|s| s.capacity() * 4)
                 .sum::<usize>()
             + self.prims.capacity() * 4
+            + self.flat.capacity()
             + self.ref_boxes.capacity() * size_of::<Aabb>()
             + self
                 .lists
@@ -179,18 +186,22 @@ where
         let t = Instant::now();
         let mut splits = std::mem::take(&mut scratch.splits);
         decision::decide(&level, &uses, &cands, &ctx, &mut splits);
-        let leaf_refs: usize = (0..level.nodes())
-            .filter(|&k| splits[k].is_none())
-            .map(|k| level.refs(k) as usize)
-            .sum();
         // The reference budget, breadth first: the references already in leaves, this level's
         // leaves and the next level's (before clipping, which only removes) must fit, or the
         // whole level becomes leaves.
-        let next_refs: usize = splits.iter().flatten().map(|s| s.refs as usize).sum();
+        let (leaves, leaf_refs, next_refs) = (0..level.nodes())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|k| match &splits[k] {
+                None => (1, level.refs(k) as usize, 0),
+                Some(s) => (0, 0, s.refs as usize),
+            })
+            .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+        report.leaves = leaves;
         if out.refs.len() + leaf_refs + next_refs > ctx.budget {
-            splits.iter_mut().for_each(|s| *s = None);
+            splits.par_iter_mut().for_each(|s| *s = None);
+            report.leaves = level.nodes();
         }
-        report.leaves = splits.iter().filter(|s| s.is_none()).count();
         report.ms.decision = ms_since(t);
         scratch.candidates = cands;
         scratch.uses = uses;
@@ -220,7 +231,6 @@ where
 /// Per node, a bit mask of the axes whose candidates it prices (0 for a node that is a leaf
 /// by size or depth).
 fn axes_in_use<E: ListEntry>(level: &Level<E>, ctx: &Context, uses: &mut Vec<u8>) {
-    use rayon::prelude::*;
     (0..level.nodes())
         .into_par_iter()
         .with_min_len(1024)

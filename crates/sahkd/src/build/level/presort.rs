@@ -9,6 +9,7 @@
 //! takes about a third of the time of rayon's parallel comparison sort on the full keys.
 
 use super::entries::ListEntry;
+use super::partition::flat_mask;
 use super::segments::{filled, Prefix, Scatter, Tally};
 use super::Level;
 use crate::build::Primitives;
@@ -22,8 +23,10 @@ pub(super) fn root_level<E: ListEntry>(prims: &Primitives, sorted: bool) -> Leve
     level.boxes.push(prims.bounds);
     level.ref_starts = vec![0, n];
     level.prims = (0..n).collect();
-    level.ref_boxes = prims.boxes.clone();
-    if sorted {
+    if !sorted {
+        level.ref_boxes = prims.boxes.clone();
+    } else {
+        level.flat = prims.boxes.par_iter().map(flat_mask).collect();
         for axis in 0..3 {
             let boxes = &prims.boxes;
             let count = |i: usize| Count(E::count(boxes[i].lo[axis], boxes[i].hi[axis]));

@@ -164,6 +164,13 @@ impl<'a, T> Scatter<'a, T> {
         self.ptr.add(i).write(value)
     }
 
+    /// The address of element `i` (which may be one past the end), for writes whose target is
+    /// chosen without a branch.
+    #[inline(always)]
+    pub fn at(&self, i: usize) -> *mut T {
+        self.ptr.wrapping_add(i)
+    }
+
     /// # Safety
     /// `i < len`, element `i` is initialised, and no other task writes it during the pass.
     #[inline(always)]
