@@ -237,6 +237,54 @@ fn trees_are_identical_on_1_2_3_and_8_threads() {
     }
 }
 
+/// Nodes large enough to be counted and partitioned in parallel chunks (the top levels of a
+/// 40k-triangle scene) build the same tree on any pool, and the same tree with both countings.
+#[test]
+fn large_nodes_build_the_same_tree_on_any_pool() {
+    let mut rng = Rng(99);
+    let tris: Vec<Triangle> = (0..40_000)
+        .map(|_| {
+            let c = Vec3::new(rng.unit(), rng.unit(), rng.unit());
+            let mut corner = || {
+                c + Vec3::new(
+                    rng.range(-0.01, 0.01),
+                    rng.range(-0.01, 0.01),
+                    rng.range(-0.01, 0.01),
+                )
+            };
+            [corner(), corner(), corner()]
+        })
+        .collect();
+    for clip in [false, true] {
+        let mut first: Option<KdTree> = None;
+        for (threads, counting) in [
+            (1, Counting::Scan),
+            (2, Counting::Scan),
+            (3, Counting::SpaceTree),
+            (8, Counting::Scan),
+        ] {
+            let o = BuildOptions {
+                threads: Some(threads),
+                counting,
+                clip,
+                ..BuildOptions::default()
+            };
+            let b = build_tree(&tris, &o);
+            let case = format!("clip {clip}, {threads} threads, {counting:?}");
+            assert!(b.report.levels.len() > 10, "{case}");
+            if let Some(f) = &first {
+                assert_eq!(f.nodes(), b.tree.nodes(), "{case}");
+                assert_eq!(f.refs(), b.tree.refs(), "{case}");
+            } else {
+                b.tree.validate().unwrap();
+                let rays = aimed_rays(5, &tris, 500);
+                assert_oracle(&b.tree, &rays, &case);
+                first = Some(b.tree);
+            }
+        }
+    }
+}
+
 /// The two countings and the naive builder count the same, so build the very same tree.
 #[test]
 fn space_tree_scan_and_naive_build_the_same_tree() {

@@ -252,8 +252,8 @@ fn axes_in_use<E: ListEntry>(level: &Level<E>, ctx: &Context, uses: &mut Vec<u8>
 #[derive(Default)]
 struct Scratch {
     candidates: Candidates,
-    /// Space-tree counting: the subtree maxima, aligned with the lists.
-    tree_max: Vec<f32>,
+    /// Space-tree counting: the level's space trees, aligned with the lists.
+    trees: Vec<space_tree::TreeNode>,
     /// Naive counting: the level's boxes per axis, structure of arrays.
     naive: naive::Extents,
     /// Per node: the axes priced, and the decision.
@@ -267,7 +267,7 @@ impl Scratch {
     fn bytes(&self) -> usize {
         use std::mem::size_of;
         self.candidates.bytes()
-            + self.tree_max.capacity() * 4
+            + self.trees.capacity() * size_of::<space_tree::TreeNode>()
             + self.naive.bytes()
             + self.uses.capacity()
             + self.splits.capacity() * size_of::<Option<decision::Split>>()
@@ -312,11 +312,10 @@ impl Pricing for Level<Span> {
         report.ms.candidates = ms_since(t);
         let t = Instant::now();
         let all = ctx.axes == Axes::All;
-        space_tree::build_trees(self, uses, all, &mut scratch.tree_max);
+        space_tree::build_trees(self, uses, all, &mut scratch.trees);
         report.ms.space_trees = ms_since(t);
         let t = Instant::now();
-        let (priced, steps, cut) =
-            space_tree::count(self, cands, &scratch.tree_max, all, &ctx.cost);
+        let (priced, steps, cut) = space_tree::count(self, cands, &scratch.trees, all, &ctx.cost);
         cands.priced = priced;
         report.walk_steps = steps;
         report.cut_primitives = cut;

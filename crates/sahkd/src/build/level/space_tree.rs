@@ -4,9 +4,10 @@
 //! holds `s[i - 1]`, has height `h = trailing_zeros(i)`, children `i -+ 2^(h-1)` and covers the
 //! slots `i - 2^h + 1 ..= i + 2^h - 1`. This is the in-order layout of the perfect tree of
 //! `2^k - 1` slots covering the list (each range's middle slot is its root); slots past `n` are
-//! absent. Each present slot stores `T` = the largest `hi` in its subtree, computed bottom-up,
-//! height by height, without recursion. Because a slot's parent is found from its index alone,
-//! the walk needs no stack.
+//! absent. Each present slot stores its span's `lo` and `hi` and `T` = the largest `hi` in its
+//! subtree (12 bytes, so that a step of the walk reads one place), computed bottom-up, height
+//! by height, without recursion. Because a slot's parent is found from its index alone, the
+//! walk needs no stack.
 //!
 //! Counting a plane `p` over a node of `n` spans:
 //! - `L = #(lo < p)` and `#(lo <= p)` by binary search in the lo-sorted list;
@@ -34,7 +35,15 @@ pub(super) fn candidates(level: &Level<Span>, uses: &[u8], cands: &mut Candidate
     });
 }
 
-/// Where the subtree maxima of node segments on `axis` live in the level's `tree_max`: with all
+/// One slot of a space tree: a span and the largest `hi` in its subtree.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct TreeNode {
+    pub lo: f32,
+    pub hi: f32,
+    pub max: f32,
+}
+
+/// Where the space trees of node segments on `axis` live in the level's tree array: with all
 /// axes one block per axis, otherwise one block (each node uses one axis). Span lists have one
 /// entry per reference on every axis, so their segments coincide on all axes.
 fn block(axis: usize, all: bool, len: usize) -> usize {
@@ -51,14 +60,14 @@ const PARALLEL_TREE: usize = 1 << 15;
 const BLOCK_HEIGHT: u32 = 13;
 
 /// Phase 2: the space tree of every node on each axis it uses.
-pub(super) fn build_trees(level: &Level<Span>, uses: &[u8], all: bool, tree_max: &mut Vec<f32>) {
+pub(super) fn build_trees(level: &Level<Span>, uses: &[u8], all: bool, trees: &mut Vec<TreeNode>) {
     let len = level.lists[0].len();
     let total = if all { 3 * len } else { len };
-    tree_max.clear();
+    trees.clear();
     // Entries of nodes that are not priced are never read; zero-filling once per level keeps
     // the array initialised at the cost of one cheap pass.
-    tree_max.resize(total, 0.0);
-    let sink = Scatter::new(tree_max);
+    trees.resize(total, TreeNode::default());
+    let sink = Scatter::new(trees);
     (0..level.nodes())
         .into_par_iter()
         .with_min_len(64)
@@ -80,44 +89,53 @@ pub(super) fn build_trees(level: &Level<Span>, uses: &[u8], all: bool, tree_max:
         });
 }
 
-/// Fills `tree_max` (same length as `spans`) with the subtree maxima.
-pub(super) fn build_tree(spans: &[Span], tree_max: &mut [f32]) {
+/// Fills `tree` (same length as `spans`) with the space tree of the spans.
+pub(super) fn build_tree(spans: &[Span], tree: &mut [TreeNode]) {
     let n = spans.len();
     if n == 0 {
         return;
     }
+    let copy = |t: &mut [TreeNode], s: &[Span]| {
+        for (t, s) in t.iter_mut().zip(s) {
+            *t = TreeNode {
+                lo: s.lo,
+                hi: s.hi,
+                max: s.hi,
+            };
+        }
+    };
     let top = usize::BITS - 1 - n.leading_zeros();
     if n < PARALLEL_TREE {
-        fill_heights(spans, tree_max, 0..top + 1);
+        copy(tree, spans);
+        fill_heights(tree, 1..top + 1);
         return;
     }
     // Aligned blocks of 2^(B+1) slots hold whole subtrees of height <= B (and one slot of a
     // greater height at their end, left alone): build those in parallel, then the few slots
     // above serially.
     let size = 1usize << (BLOCK_HEIGHT + 1);
-    tree_max
-        .par_chunks_mut(size)
+    tree.par_chunks_mut(size)
         .zip(spans.par_chunks(size))
-        .for_each(|(t, s)| fill_heights(s, t, 0..BLOCK_HEIGHT + 1));
-    fill_heights(spans, tree_max, BLOCK_HEIGHT + 1..top + 1);
+        .for_each(|(t, s)| {
+            copy(t, s);
+            fill_heights(t, 1..BLOCK_HEIGHT + 1);
+        });
+    fill_heights(tree, BLOCK_HEIGHT + 1..top + 1);
 }
 
-/// Computes `T` for the present slots of the given heights, lowest first; lower heights must
-/// be done already.
-fn fill_heights(spans: &[Span], tree_max: &mut [f32], heights: std::ops::Range<u32>) {
-    let n = spans.len();
+/// Computes `T` for the present slots of the given heights (from 1; height 0 is `T = hi`),
+/// lowest first; lower heights must be done already.
+fn fill_heights(tree: &mut [TreeNode], heights: std::ops::Range<u32>) {
+    let n = tree.len();
     for h in heights {
+        let half = 1usize << (h - 1);
         let mut i = 1usize << h;
         while i <= n {
-            let mut t = spans[i - 1].hi;
-            if h > 0 {
-                let half = 1usize << (h - 1);
-                t = t.max(tree_max[i - half - 1]);
-                if let Some(r) = subtree_max(tree_max, n, i + half) {
-                    t = t.max(r);
-                }
+            let mut t = tree[i - 1].hi.max(tree[i - half - 1].max);
+            if let Some(r) = subtree_max(tree, n, i + half) {
+                t = t.max(r);
             }
-            tree_max[i - 1] = t;
+            tree[i - 1].max = t;
             i += 2 << h;
         }
     }
@@ -126,7 +144,7 @@ fn fill_heights(spans: &[Span], tree_max: &mut [f32], heights: std::ops::Range<u
 /// `T` of the subtree at slot `c`, which may be absent: an absent slot's present descendants
 /// all lie in its left subtree.
 #[inline]
-fn subtree_max(tree_max: &[f32], n: usize, mut c: usize) -> Option<f32> {
+fn subtree_max(tree: &[TreeNode], n: usize, mut c: usize) -> Option<f32> {
     while c > n {
         let h = c.trailing_zeros();
         if h == 0 {
@@ -134,7 +152,7 @@ fn subtree_max(tree_max: &[f32], n: usize, mut c: usize) -> Option<f32> {
         }
         c -= 1 << (h - 1);
     }
-    Some(tree_max[c - 1])
+    Some(tree[c - 1].max)
 }
 
 /// Counts of one plane, with the walk's statistics.
@@ -147,11 +165,11 @@ pub(super) struct Walk {
     pub steps: u32,
 }
 
-/// Counts the plane `p` over one node's lo-sorted spans and their subtree maxima.
-pub(super) fn count_plane(spans: &[Span], tree_max: &[f32], p: f32) -> Walk {
-    let n = spans.len();
-    let below = spans.partition_point(|s| s.lo < p);
-    let through = spans.partition_point(|s| s.lo <= p);
+/// Counts the plane `p` over one node's space tree.
+pub(super) fn count_plane(tree: &[TreeNode], p: f32) -> Walk {
+    let n = tree.len();
+    let below = tree.partition_point(|s| s.lo < p);
+    let through = tree.partition_point(|s| s.lo <= p);
     let (mut right, mut cut, mut touching, mut steps) = (0usize, 0u32, 0u32, 0u32);
     if n > 0 {
         let root = 1usize << (usize::BITS - 1 - n.leading_zeros());
@@ -162,8 +180,8 @@ pub(super) fn count_plane(spans: &[Span], tree_max: &[f32], p: f32) -> Walk {
             let h = i.trailing_zeros();
             let mut down = true;
             if i <= n {
-                let s = spans[i - 1];
-                if tree_max[i - 1] <= p {
+                let s = tree[i - 1];
+                if s.max <= p {
                     down = false;
                 } else if s.lo > p {
                     right += (i + (1 << h) - 1).min(n) - i + 1;
@@ -188,7 +206,7 @@ pub(super) fn count_plane(spans: &[Span], tree_max: &[f32], p: f32) -> Walk {
                 let h = i.trailing_zeros();
                 if (i >> (h + 1)) & 1 == 0 {
                     let parent = i + (1 << h);
-                    if parent <= n && tree_max[parent - 1] > p && spans[parent - 1].lo <= p {
+                    if parent <= n && tree[parent - 1].max > p && tree[parent - 1].lo <= p {
                         i = parent + (1 << h);
                         continue 'walk;
                     }
@@ -215,7 +233,7 @@ pub(super) fn count_plane(spans: &[Span], tree_max: &[f32], p: f32) -> Walk {
 pub(super) fn count(
     level: &Level<Span>,
     cands: &mut Candidates,
-    tree_max: &[f32],
+    trees: &[TreeNode],
     all: bool,
     cost: &CostModel,
 ) -> (usize, u64, u64) {
@@ -238,7 +256,7 @@ pub(super) fn count(
                 level.list_starts[axis][k + 1] as usize,
             );
             let at = block(axis, all, len);
-            let w = count_plane(&level.lists[axis][s..e], &tree_max[at + s..at + e], c.pos);
+            let w = count_plane(&trees[at + s..at + e], c.pos);
             *c = candidates::price(cost, &level.boxes[k], axis, c.pos, c.owner, w.counts);
             (1, w.steps as u64, w.cut as u64)
         })
@@ -277,13 +295,18 @@ mod tests {
         spans
     }
 
-    fn check(spans: &[Span]) {
-        let mut t = vec![0.0; spans.len()];
+    fn tree_of(spans: &[Span]) -> Vec<TreeNode> {
+        let mut t = vec![TreeNode::default(); spans.len()];
         build_tree(spans, &mut t);
+        t
+    }
+
+    fn check(spans: &[Span]) {
+        let t = tree_of(spans);
         let mut planes: Vec<f32> = spans.iter().flat_map(|s| [s.lo, s.hi]).collect();
         planes.extend([-1.0, 0.5, 1e9]);
         for p in planes {
-            let w = count_plane(spans, &t, p);
+            let w = count_plane(&t, p);
             let (c, cut) = direct(spans, p);
             assert_eq!(
                 (w.counts, w.cut),
@@ -358,17 +381,20 @@ mod tests {
                 })
                 .collect(),
         );
-        let mut parallel = vec![0.0; n];
-        build_tree(&spans, &mut parallel);
-        let mut serial = vec![0.0; n];
+        let parallel = tree_of(&spans);
+        let mut serial: Vec<TreeNode> = spans
+            .iter()
+            .map(|s| TreeNode {
+                lo: s.lo,
+                hi: s.hi,
+                max: s.hi,
+            })
+            .collect();
         let top = usize::BITS - 1 - n.leading_zeros();
-        fill_heights(&spans, &mut serial, 0..top + 1);
+        fill_heights(&mut serial, 1..top + 1);
         assert_eq!(parallel, serial);
         for p in [0.0, 5000.5, 50_000.0, 99_999.0] {
-            assert_eq!(
-                count_plane(&spans, &parallel, p).counts,
-                direct(&spans, p).0
-            );
+            assert_eq!(count_plane(&parallel, p).counts, direct(&spans, p).0);
         }
     }
 
@@ -383,9 +409,8 @@ mod tests {
                 slot: i,
             })
             .collect();
-        let mut t = vec![0.0; n];
-        build_tree(&spans, &mut t);
-        let w = count_plane(&spans, &t, 1000.25);
+        let t = tree_of(&spans);
+        let w = count_plane(&t, 1000.25);
         assert_eq!(w.cut, 1);
         assert!(w.steps < 4 * 17, "{} steps", w.steps);
     }
