@@ -4,6 +4,7 @@
 //! builder takes the same [`Primitives`] and returns the same [`BuiltTree`]; [`build`] picks
 //! the builder, runs it on a thread pool of the requested size, and times it.
 
+mod level;
 mod report;
 mod sweep;
 
@@ -207,7 +208,7 @@ fn run(triangles: Vec<Triangle>, options: &BuildOptions) -> Build {
     };
     let built = match options.algorithm {
         Algorithm::Sweep => sweep::build(&prims, options),
-        Algorithm::Level | Algorithm::Naive => sweep::build(&prims, options),
+        Algorithm::Level | Algorithm::Naive => level::build(&prims, options),
     };
     let mut report = built.report;
     report.build_ms = start.elapsed().as_secs_f64() * 1e3;
