@@ -38,12 +38,14 @@ struct Item {
     bounds: Aabb,
 }
 
-/// A node waiting to be built: its slot, box, depth and primitives.
+/// A node waiting to be built: its slot, box, depth, primitives and their extent.
 struct Pending {
     slot: u32,
     bounds: Aabb,
     depth: u32,
     items: Vec<Item>,
+    /// The union of the items' boxes.
+    extent: Aabb,
 }
 
 /// How a large node is split.
@@ -64,8 +66,7 @@ enum Outcome {
     Split {
         node: Pending,
         split: Split,
-        left: Vec<Item>,
-        right: Vec<Item>,
+        children: [Side; 2],
     },
 }
 
@@ -90,6 +91,7 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
                 bounds,
             })
             .collect(),
+        extent: without_negative_zeros(prims.bounds),
     };
     let mut built = BuiltTree {
         nodes: vec![Node::leaf(0, 0)],
@@ -141,12 +143,11 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
             .map(|(node, split)| match split {
                 None => Outcome::Leaf(node),
                 Some(split) => {
-                    let (left, right) = partition(&node, &split, clip);
+                    let children = partition(&node, &split, clip);
                     Outcome::Split {
                         node,
                         split,
-                        left,
-                        right,
+                        children,
                     }
                 }
             })
@@ -165,22 +166,24 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
                 Outcome::Split {
                     node,
                     split,
-                    left,
-                    right,
+                    children,
                 } => {
                     let slot = built.nodes.len() as u32;
                     built.nodes[node.slot as usize] = Node::interior(split.axis, split.pos, slot);
                     built.nodes.extend([Node::leaf(0, 0); 2]);
-                    references = references + left.len() + right.len() - node.items.len();
+                    let [left, right] = children;
+                    references =
+                        references + left.items.len() + right.items.len() - node.items.len();
                     let (left_box, right_box) = node.bounds.split(split.axis, split.pos);
-                    for (slot, bounds, items) in
+                    for (slot, bounds, side) in
                         [(slot, left_box, left), (slot + 1, right_box, right)]
                     {
                         let child = Pending {
                             slot,
                             bounds,
                             depth: node.depth + 1,
-                            items,
+                            items: side.items,
+                            extent: side.extent,
                         };
                         if child.items.len() > large {
                             next.push(child);
@@ -217,8 +220,7 @@ fn choose_split(node: &Pending, cost: &CostModel, max_depth: u32) -> Option<Spli
         return None;
     }
     let bounds = &node.bounds;
-    let extent = extent_of(&node.items);
-    let (split, split_cost) = if let Some(cut) = empty_space_cut(bounds, &extent, n) {
+    let (split, split_cost) = if let Some(cut) = empty_space_cut(bounds, &node.extent, n) {
         let c = cost.split_cost(bounds, cut.axis, cut.pos, cut.n_left, cut.n_right);
         (cut, c)
     } else {
@@ -242,17 +244,6 @@ fn choose_split(node: &Pending, cost: &CostModel, max_depth: u32) -> Option<Spli
         (split, cost_left.min(cost_right))
     };
     (split_cost < cost.leaf_cost(n)).then_some(split)
-}
-
-/// The union of the items' boxes, with `-0.0` made `0.0` so that the order in which threads
-/// combined the boxes cannot show in a split position.
-fn extent_of(items: &[Item]) -> Aabb {
-    let b = items
-        .par_iter()
-        .with_min_len(MIN_ITEMS_PER_TASK)
-        .fold(|| Aabb::EMPTY, |b, it| b.union(it.bounds))
-        .reduce(|| Aabb::EMPTY, Aabb::union);
-    Aabb::new(b.lo + Vec3::splat(0.0), b.hi + Vec3::splat(0.0))
 }
 
 /// The cut of the largest empty space beyond `EMPTY_SPACE_RATIO` of the node's extent, at
@@ -304,40 +295,106 @@ fn count_at(items: &[Item], axis: usize, pos: f32) -> (u32, u32, u32) {
         .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2))
 }
 
-/// The children's items by the shared partition rule. Straddlers go to both sides with their
-/// boxes re-clipped from the triangle (`clip`) or cut to the child's box; a straddler whose
-/// clipped box is empty is dropped from that child.
-fn partition(node: &Pending, split: &Split, clip: Option<&[Triangle]>) -> (Vec<Item>, Vec<Item>) {
+/// One child's items and the union of their boxes.
+struct Side {
+    items: Vec<Item>,
+    extent: Aabb,
+}
+
+impl Side {
+    fn with_capacity(n: usize) -> Side {
+        Side {
+            items: Vec::with_capacity(n),
+            extent: Aabb::EMPTY,
+        }
+    }
+    fn push(&mut self, item: Item) {
+        self.extent = self.extent.union(item.bounds);
+        self.items.push(item);
+    }
+}
+
+/// The children's items by the shared partition rule, in one pass that also gives their
+/// extents. Straddlers go to both sides with their boxes re-clipped from the triangle
+/// (`clip`) or cut to the child's box; a straddler whose clipped box is empty is dropped
+/// from that child. A large node's items are split in chunks on all threads and the chunks'
+/// results joined in order.
+fn partition(node: &Pending, split: &Split, clip: Option<&[Triangle]>) -> [Side; 2] {
     let (axis, pos) = (split.axis, split.pos);
-    let (left_box, right_box) = node.bounds.split(axis, pos);
-    let child = |it: &Item, to_left: bool| -> Option<Item> {
-        let (lo, hi) = (it.bounds.lo[axis], it.bounds.hi[axis]);
-        let (left, right) = if lo == pos && hi == pos {
-            (split.planar_left, !split.planar_left)
-        } else {
-            (lo < pos, hi > pos)
-        };
-        if !(if to_left { left } else { right }) {
-            return None;
-        }
-        if !(left && right) {
-            return Some(*it);
-        }
-        let child_box = if to_left { &left_box } else { &right_box };
-        let bounds = match clip {
-            Some(triangles) => clipped_bounds(&triangles[it.id as usize], child_box),
-            None => it.bounds.intersection(*child_box),
-        };
-        (!bounds.is_empty()).then_some(Item { id: it.id, bounds })
+    let child_boxes = {
+        let (l, r) = node.bounds.split(axis, pos);
+        [l, r]
     };
-    let side = |to_left: bool| -> Vec<Item> {
-        node.items
-            .par_iter()
-            .with_min_len(MIN_ITEMS_PER_TASK)
-            .filter_map(|it| child(it, to_left))
-            .collect()
+    let part = |items: &[Item], capacity: [usize; 2]| -> [Side; 2] {
+        let mut sides = capacity.map(Side::with_capacity);
+        for it in items {
+            let (lo, hi) = (it.bounds.lo[axis], it.bounds.hi[axis]);
+            let (left, right) = if lo == pos && hi == pos {
+                (split.planar_left, !split.planar_left)
+            } else {
+                (lo < pos, hi > pos)
+            };
+            if !(left && right) {
+                sides[right as usize].push(*it);
+                continue;
+            }
+            for (side, child_box) in sides.iter_mut().zip(&child_boxes) {
+                let bounds = match clip {
+                    Some(triangles) => clipped_bounds(&triangles[it.id as usize], child_box),
+                    None => it.bounds.intersection(*child_box),
+                };
+                if !bounds.is_empty() {
+                    side.push(Item { id: it.id, bounds });
+                }
+            }
+        }
+        sides
     };
-    rayon::join(|| side(true), || side(false))
+    let items = &node.items;
+    let mut sides = if items.len() <= MIN_ITEMS_PER_TASK {
+        part(items, [split.n_left as usize, split.n_right as usize])
+    } else {
+        let chunks: Vec<[Side; 2]> = items
+            .par_chunks(MIN_ITEMS_PER_TASK)
+            .map(|chunk| part(chunk, [chunk.len() / 2; 2]))
+            .collect();
+        [0, 1].map(|k| Side {
+            items: concat(chunks.iter().map(|c| &c[k].items[..]).collect()),
+            extent: chunks.iter().fold(Aabb::EMPTY, |b, c| b.union(c[k].extent)),
+        })
+    };
+    for side in &mut sides {
+        side.extent = without_negative_zeros(side.extent);
+    }
+    sides
+}
+
+/// The parts one after the other, copied on all threads.
+fn concat(parts: Vec<&[Item]>) -> Vec<Item> {
+    let total = parts.iter().map(|p| p.len()).sum();
+    let blank = Item {
+        id: 0,
+        bounds: Aabb::EMPTY,
+    };
+    let mut out = vec![blank; total];
+    let mut targets = Vec::with_capacity(parts.len());
+    let mut rest = &mut out[..];
+    for part in &parts {
+        let (target, tail) = rest.split_at_mut(part.len());
+        targets.push(target);
+        rest = tail;
+    }
+    targets
+        .into_par_iter()
+        .zip(parts)
+        .for_each(|(target, part)| target.copy_from_slice(part));
+    out
+}
+
+/// The box with `-0.0` made `0.0`: which of two zeros `min` returns depends on the order in
+/// which threads combined boxes, and must not show in a split position.
+fn without_negative_zeros(b: Aabb) -> Aabb {
+    Aabb::new(b.lo + Vec3::splat(0.0), b.hi + Vec3::splat(0.0))
 }
 
 /// Builds every small node's exact SAH subtree in parallel, then places them in the tree in
