@@ -13,6 +13,11 @@
 //! with `clip`), the leaf rules (leaf size, depth cap from the root, a split must be cheaper
 //! than the leaf, also for large nodes), the reference budget and the tree format. Results
 //! are placed by index, never by completion order, so any thread count gives the same tree.
+//!
+//! The budget is checked breadth first: a level's splits are taken in node order while the
+//! running total of references stays within it; the small nodes then share what is left in
+//! proportion to their primitives. The root can never be an empty-space cut, since the
+//! scene box is the triangles' own box.
 
 use super::sweep::{self, Subtree};
 use super::{BuildOptions, BuiltTree, LevelReport, Primitives};
