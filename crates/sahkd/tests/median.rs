@@ -357,3 +357,14 @@ fn bunny_matches_brute_force_on_2000_rays() {
 fn dragon_res3_matches_brute_force_on_2000_rays() {
     real_scene("dragon_res3.ply");
 }
+
+/// Options saved before `median_large_node` existed (as the Python package's tree files
+/// hold them) still load, with the default threshold.
+#[test]
+fn options_without_the_threshold_still_deserialize() {
+    let mut saved = serde_json::to_value(BuildOptions::sweep()).unwrap();
+    saved.as_object_mut().unwrap().remove("median_large_node");
+    let loaded: BuildOptions = serde_json::from_value(saved).unwrap();
+    assert_eq!(loaded, BuildOptions::sweep());
+    assert_eq!(loaded.median_large_node, 64);
+}

@@ -58,8 +58,10 @@ pub enum Counting {
 }
 
 /// Everything that decides a build. Same options and input give the same tree, whatever the
-/// number of threads.
+/// number of threads. Fields missing from serialized options take their defaults, so options
+/// saved before a field existed still load.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct BuildOptions {
     pub algorithm: Algorithm,
     pub axes: Axes,
