@@ -40,6 +40,12 @@ pub struct BuilderArgs {
           default_value_t = default_options().clip.into())]
     pub clip: Switch,
 
+    /// Median builder: nodes with more triangles than this are split at the spatial median
+    /// (or cut off empty space); smaller ones get exact SAH
+    #[arg(long, value_name = "N", allow_negative_numbers = true,
+          default_value_t = default_options().median_large_node)]
+    pub large_node: u32,
+
     /// Worker threads for building and tracing [default: all cores]
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = parse_threads)]
     pub threads: Option<usize>,
@@ -92,6 +98,7 @@ impl BuilderArgs {
                 max_depth: self.max_depth.0,
                 max_duplication: self.max_duplication,
             },
+            median_large_node: self.large_node,
         }
     }
 
@@ -146,6 +153,8 @@ pub enum AlgorithmArg {
     Level,
     /// The level framework with brute-force counting (for checking)
     Naive,
+    /// Zhou et al. 2008: spatial median and empty-space cuts for large nodes, SAH below
+    Median,
 }
 
 impl From<Algorithm> for AlgorithmArg {
@@ -154,6 +163,7 @@ impl From<Algorithm> for AlgorithmArg {
             Algorithm::Sweep => Self::Sweep,
             Algorithm::Level => Self::Level,
             Algorithm::Naive => Self::Naive,
+            Algorithm::Median => Self::Median,
         }
     }
 }
@@ -164,6 +174,7 @@ impl From<AlgorithmArg> for Algorithm {
             AlgorithmArg::Sweep => Self::Sweep,
             AlgorithmArg::Level => Self::Level,
             AlgorithmArg::Naive => Self::Naive,
+            AlgorithmArg::Median => Self::Median,
         }
     }
 }
@@ -251,6 +262,7 @@ pub fn algorithm_name(a: Algorithm) -> &'static str {
         Algorithm::Sweep => "sweep",
         Algorithm::Level => "level",
         Algorithm::Naive => "naive",
+        Algorithm::Median => "median",
     }
 }
 
@@ -384,6 +396,7 @@ mod tests {
             "--leaf-size=4",
             "--max-depth=12",
             "--max-duplication=2",
+            "--large-node=16",
         ])
         .unwrap();
         let expected = BuildOptions {
@@ -400,6 +413,7 @@ mod tests {
                 max_depth: Some(12),
                 max_duplication: 2.0,
             },
+            median_large_node: 16,
         };
         assert_eq!(o, expected);
         assert_eq!(
@@ -422,6 +436,7 @@ mod tests {
             &["--max-duplication", "0.5"],
             &["--max-depth", "deep"],
             &["--leaf-size", "-2"],
+            &["--large-node", "-1"],
         ] {
             assert!(parse(bad).is_err(), "{bad:?} was accepted");
         }

@@ -145,6 +145,10 @@ fn build_options_reach_the_library() {
             o.algorithm = sahkd::Algorithm::Naive;
             o.axes = sahkd::Axes::All;
         }),
+        (&["--algorithm", "median", "--large-node", "16"], |o| {
+            o.algorithm = sahkd::Algorithm::Median;
+            o.median_large_node = 16;
+        }),
         (&["--counting", "space-tree", "--clip", "off"], |o| {
             o.counting = sahkd::Counting::SpaceTree;
             o.clip = false;

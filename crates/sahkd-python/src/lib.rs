@@ -37,7 +37,7 @@ const RAY_CHUNK: usize = 256;
 /// vertices: (V, 3) float32 or float64 array; faces: (F, 3) array of any integer type,
 /// every index in 0..V. Other memory layouts (slices, transposes) are read in place.
 /// algorithm: "level" (the parallel level-by-level builder), "sweep" (the serial reference
-/// builder) or "naive". axes: "longest" or "all"; counting: "scan" or "space-tree" (None:
+/// builder), "naive" or "median" (Zhou et al.'s spatial-median builder). axes: "longest" or "all"; counting: "scan" or "space-tree" (None:
 /// the library defaults, shown in .stats). clip: clip straddling triangles to each child
 /// ("perfect splits"). threads: worker threads for the build and for every query of this
 /// tree (None: every core, or RAYON_NUM_THREADS). cost: the SAH cost model and limits,

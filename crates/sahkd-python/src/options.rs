@@ -36,6 +36,7 @@ pub fn algorithm_name(a: Algorithm) -> &'static str {
         Algorithm::Sweep => "sweep",
         Algorithm::Level => "level",
         Algorithm::Naive => "naive",
+        Algorithm::Median => "median",
     }
 }
 pub fn axes_name(a: Axes) -> &'static str {
@@ -132,6 +133,7 @@ pub fn build_options(
             ("level", Algorithm::Level),
             ("sweep", Algorithm::Sweep),
             ("naive", Algorithm::Naive),
+            ("median", Algorithm::Median),
         ],
     )?;
     if let Some(a) = axes {

@@ -50,7 +50,7 @@ def test_bad_meshes_are_refused_clearly(vertices, faces, error, message):
 @pytest.mark.parametrize(
     "kwargs, error, message",
     [
-        (dict(algorithm="fast"), ValueError, r"algorithm must be one of 'level', 'sweep', 'naive', got 'fast'"),
+        (dict(algorithm="fast"), ValueError, r"algorithm must be one of 'level', 'sweep', 'naive', 'median', got 'fast'"),
         (dict(axes="x"), ValueError, r"axes must be one of 'longest', 'all'"),
         (dict(counting="tree"), ValueError, r"counting must be one of 'scan', 'space-tree'"),
         (dict(threads=0), ValueError, r"threads must be at least 1"),

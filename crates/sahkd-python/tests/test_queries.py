@@ -78,6 +78,7 @@ def test_every_query_matches_the_float64_oracle(vertex_dtype, face_dtype):
         dict(),
         dict(algorithm="sweep"),
         dict(algorithm="naive", axes="all", clip=False),
+        dict(algorithm="median", axes="all"),
         dict(axes="all", counting="space-tree"),
         dict(threads=1, leaf_size=4, traversal=5.0, intersection=30.0),
     ],
@@ -229,7 +230,7 @@ def test_stats_report_the_tree_and_its_options():
 def test_the_same_tree_on_any_number_of_threads():
     rng = np.random.default_rng(2)
     vertices, faces = triangle_soup(rng, 400)
-    for algorithm in ("level", "sweep", "naive"):
+    for algorithm in ("level", "sweep", "naive", "median"):
         trees = [sahkd.KdTree(vertices, faces, algorithm=algorithm, threads=n) for n in (1, 2, 3)]
         structures = [t._structure() for t in trees]
         for nodes, refs in structures[1:]:

@@ -5,6 +5,7 @@
 //! the builder, runs it on a thread pool of the requested size, and times it.
 
 mod level;
+mod median;
 mod report;
 mod sweep;
 
@@ -29,6 +30,10 @@ pub enum Algorithm {
     Level,
     /// The level framework with brute-force counting, O(n) per candidate.
     Naive,
+    /// The paper's reference [14]: Zhou, Hou, Wang & Guo 2008 as implemented by Chang, Seo &
+    /// Ihm 2015. Breadth-first; large nodes cut off empty space or split at the spatial
+    /// median, small nodes get exact SAH.
+    Median,
 }
 
 /// Which axes a node's candidates come from.
@@ -54,8 +59,10 @@ pub enum Counting {
 }
 
 /// Everything that decides a build. Same options and input give the same tree, whatever the
-/// number of threads.
+/// number of threads. Fields missing from serialized options take their defaults, so options
+/// saved before a field existed still load.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct BuildOptions {
     pub algorithm: Algorithm,
     pub axes: Axes,
@@ -66,6 +73,9 @@ pub struct BuildOptions {
     /// Worker threads; `None` uses rayon's global pool (every core).
     pub threads: Option<usize>,
     pub cost: CostModel,
+    /// Median builder only: nodes with more primitives than this are "large" (empty-space
+    /// cut or spatial median split); the others get exact SAH.
+    pub median_large_node: u32,
 }
 
 impl Default for BuildOptions {
@@ -77,6 +87,7 @@ impl Default for BuildOptions {
             clip: true,
             threads: None,
             cost: CostModel::default(),
+            median_large_node: 64,
         }
     }
 }
@@ -209,6 +220,7 @@ fn run(triangles: Vec<Triangle>, options: &BuildOptions) -> Build {
     let built = match options.algorithm {
         Algorithm::Sweep => sweep::build(&prims, options),
         Algorithm::Level | Algorithm::Naive => level::build(&prims, options),
+        Algorithm::Median => median::build(&prims, options),
     };
     let mut report = built.report;
     report.build_ms = start.elapsed().as_secs_f64() * 1e3;

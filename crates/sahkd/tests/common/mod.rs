@@ -51,7 +51,7 @@ pub fn random_triangles(rng: &mut StdRng, n: usize) -> Vec<Triangle> {
                 1 | 2 => 0.02,
                 _ => 0.1,
             };
-            let mut corner = |rng: &mut StdRng| {
+            let corner = |rng: &mut StdRng| {
                 centre
                     + Vec3::new(
                         rng.random_range(-size..size),
@@ -204,14 +204,32 @@ pub fn all_variants() -> Vec<BuildOptions> {
                 clip,
                 ..BuildOptions::default()
             });
+            out.push(BuildOptions {
+                algorithm: Algorithm::Median,
+                axes,
+                clip,
+                ..BuildOptions::default()
+            });
         }
+        // Large nodes down to 4 primitives: the median phase meets small scenes' corner cases.
+        out.push(BuildOptions {
+            algorithm: Algorithm::Median,
+            axes: Axes::All,
+            clip,
+            median_large_node: 4,
+            ..BuildOptions::default()
+        });
     }
     out
 }
 
 pub fn describe(o: &BuildOptions) -> String {
+    let large = match o.algorithm {
+        Algorithm::Median => format!(" large_node={}", o.median_large_node),
+        _ => String::new(),
+    };
     format!(
-        "{:?} axes={:?} counting={:?} clip={}",
+        "{:?} axes={:?} counting={:?} clip={}{large}",
         o.algorithm, o.axes, o.counting, o.clip
     )
 }

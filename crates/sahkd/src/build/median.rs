@@ -1,0 +1,464 @@
+//! The paper's reference [14]: Zhou, Hou, Wang & Guo 2008, "Real-time kd-tree construction on
+//! graphics hardware", as implemented by Chang, Seo & Ihm 2015, on the CPU with rayon.
+//!
+//! The tree is built breadth first. A *large* node (more than `median_large_node`
+//! primitives) is not priced over all candidates: when one side of its box is more than 25%
+//! empty along an axis, that empty space is cut off (a split at the primitives' extent, whose
+//! other child is an empty leaf); otherwise it is split at the spatial median of its longest
+//! axis. A level's large nodes are decided and partitioned in parallel, over nodes and over
+//! each node's primitives. Once nodes are *small*, each gets its exact SAH subtree from the
+//! sweep builder, all of them in parallel.
+//!
+//! Shared with the other builders: the partition rule (straddlers to both sides, re-clipped
+//! with `clip`), the leaf rules (leaf size, depth cap from the root, a split must be cheaper
+//! than the leaf, also for large nodes), the reference budget and the tree format. Results
+//! are placed by index, never by completion order, so any thread count gives the same tree.
+//!
+//! The budget is checked breadth first: a level's splits are taken in node order while the
+//! running total of references stays within it; the small nodes then share what is left in
+//! proportion to their primitives. The root can never be an empty-space cut, since the
+//! scene box is the triangles' own box.
+
+use super::sweep::{self, Subtree};
+use super::{BuildOptions, BuiltTree, LevelReport, Primitives};
+use crate::clip::clipped_bounds;
+use crate::cost::CostModel;
+use crate::geometry::{Aabb, Triangle, Vec3};
+use crate::tree::Node;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// The share of a node's extent on one side that must be empty for an empty-space cut
+/// (Zhou et al.'s `C_e`).
+const EMPTY_SPACE_RATIO: f32 = 0.25;
+
+/// Fewer primitives than this are handled by one thread: splitting the work finer costs more
+/// than it saves.
+const MIN_ITEMS_PER_TASK: usize = 4096;
+
+/// A primitive of a node: its triangle and its box within the node.
+#[derive(Clone, Copy, Debug)]
+struct Item {
+    id: u32,
+    bounds: Aabb,
+}
+
+/// A node waiting to be built: its slot, box, depth, primitives and their extent.
+struct Pending {
+    slot: u32,
+    bounds: Aabb,
+    depth: u32,
+    items: Vec<Item>,
+    /// The union of the items' boxes.
+    extent: Aabb,
+}
+
+/// How a large node is split.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Split {
+    axis: usize,
+    pos: f32,
+    /// The primitives lying in the plane go left (else right).
+    planar_left: bool,
+    /// Primitives on each side before clipping (clipping can only drop some).
+    n_left: u32,
+    n_right: u32,
+}
+
+/// What became of a large node.
+enum Outcome {
+    Leaf(Pending),
+    Split {
+        node: Pending,
+        split: Split,
+        children: [Side; 2],
+    },
+}
+
+pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
+    let cost = &options.cost;
+    let total_prims = prims.triangles.len();
+    let max_depth = cost.max_depth_for(total_prims);
+    let budget = cost.reference_budget(total_prims);
+    let clip = options.clip.then_some(prims.triangles);
+    let large = options.median_large_node as usize;
+
+    let root = Pending {
+        slot: 0,
+        bounds: prims.bounds,
+        depth: 0,
+        items: prims
+            .boxes
+            .iter()
+            .enumerate()
+            .map(|(i, &bounds)| Item {
+                id: i as u32,
+                bounds,
+            })
+            .collect(),
+        extent: without_negative_zeros(prims.bounds),
+    };
+    let mut built = BuiltTree {
+        nodes: vec![Node::leaf(0, 0)],
+        ..BuiltTree::default()
+    };
+    // References held by the finished leaves and the pending nodes, large and small.
+    let mut references = total_prims;
+    let mut small = Vec::new();
+    let mut level = Vec::new();
+    if root.items.len() > large {
+        level.push(root);
+    } else {
+        small.push(root);
+    }
+    let mut peak_items = total_prims;
+
+    while !level.is_empty() {
+        let mut report = LevelReport {
+            depth: level[0].depth,
+            nodes: level.len(),
+            candidates: level.len(),
+            references: level.iter().map(|n| n.items.len()).sum(),
+            ..LevelReport::default()
+        };
+        let start = Instant::now();
+        let mut splits: Vec<Option<Split>> = level
+            .par_iter()
+            .map(|node| choose_split(node, cost, max_depth))
+            .collect();
+        // The budget in level order: a split is taken while the running total of references
+        // stays within it.
+        let mut held = references;
+        for (node, split) in level.iter().zip(splits.iter_mut()) {
+            if let Some(s) = split {
+                let after = held + (s.n_left + s.n_right) as usize - node.items.len();
+                if after <= budget {
+                    held = after;
+                } else {
+                    *split = None;
+                }
+            }
+        }
+        report.ms.decision = start.elapsed().as_secs_f64() * 1e3;
+
+        let start = Instant::now();
+        let outcomes: Vec<Outcome> = level
+            .into_par_iter()
+            .zip(splits)
+            .map(|(node, split)| match split {
+                None => Outcome::Leaf(node),
+                Some(split) => {
+                    let children = partition(&node, &split, clip);
+                    Outcome::Split {
+                        node,
+                        split,
+                        children,
+                    }
+                }
+            })
+            .collect();
+        report.ms.partition = start.elapsed().as_secs_f64() * 1e3;
+
+        let mut next = Vec::new();
+        for outcome in outcomes {
+            match outcome {
+                Outcome::Leaf(node) => {
+                    report.leaves += 1;
+                    let first = built.refs.len() as u32;
+                    built.refs.extend(node.items.iter().map(|it| it.id));
+                    built.nodes[node.slot as usize] = Node::leaf(first, node.items.len() as u32);
+                }
+                Outcome::Split {
+                    node,
+                    split,
+                    children,
+                } => {
+                    let slot = built.nodes.len() as u32;
+                    built.nodes[node.slot as usize] = Node::interior(split.axis, split.pos, slot);
+                    built.nodes.extend([Node::leaf(0, 0); 2]);
+                    let [left, right] = children;
+                    references =
+                        references + left.items.len() + right.items.len() - node.items.len();
+                    let (left_box, right_box) = node.bounds.split(split.axis, split.pos);
+                    for (slot, bounds, side) in
+                        [(slot, left_box, left), (slot + 1, right_box, right)]
+                    {
+                        let child = Pending {
+                            slot,
+                            bounds,
+                            depth: node.depth + 1,
+                            items: side.items,
+                            extent: side.extent,
+                        };
+                        if child.items.len() > large {
+                            next.push(child);
+                        } else {
+                            small.push(child);
+                        }
+                    }
+                }
+            }
+        }
+        // The level's items and its children's were held at once.
+        let held_items: usize = next.iter().chain(small.iter()).map(|n| n.items.len()).sum();
+        peak_items = peak_items.max(report.references + held_items);
+        built.report.levels.push(report);
+        level = next;
+    }
+
+    build_small_nodes(
+        prims.triangles,
+        small,
+        options,
+        max_depth,
+        budget.saturating_sub(references),
+        &mut built,
+    );
+    built.report.peak_working_bytes = peak_items * std::mem::size_of::<Item>();
+    built
+}
+
+/// The split of a large node, or `None` when it must be a leaf.
+fn choose_split(node: &Pending, cost: &CostModel, max_depth: u32) -> Option<Split> {
+    let n = node.items.len() as u32;
+    if n <= cost.leaf_size || node.depth >= max_depth {
+        return None;
+    }
+    let bounds = &node.bounds;
+    let (split, split_cost) = if let Some(cut) = empty_space_cut(bounds, &node.extent, n) {
+        let c = cost.split_cost(bounds, cut.axis, cut.pos, cut.n_left, cut.n_right);
+        (cut, c)
+    } else {
+        let axis = bounds.longest_axis();
+        // Halves first, so that coordinates near the largest float do not overflow.
+        let pos = bounds.lo[axis] * 0.5 + bounds.hi[axis] * 0.5 + 0.0;
+        if !(pos > bounds.lo[axis] && pos < bounds.hi[axis]) {
+            return None;
+        }
+        let (below, above, planar) = count_at(&node.items, axis, pos);
+        let cost_left = cost.split_cost(bounds, axis, pos, below + planar, above);
+        let cost_right = cost.split_cost(bounds, axis, pos, below, above + planar);
+        let planar_left = cost_left <= cost_right;
+        let split = Split {
+            axis,
+            pos,
+            planar_left,
+            n_left: below + if planar_left { planar } else { 0 },
+            n_right: above + if planar_left { 0 } else { planar },
+        };
+        (split, cost_left.min(cost_right))
+    };
+    (split_cost < cost.leaf_cost(n)).then_some(split)
+}
+
+/// The cut of the largest empty space beyond `EMPTY_SPACE_RATIO` of the node's extent, at
+/// the primitives' extent, all `n` primitives going to the other side (planar ones too).
+/// Ties go to the lower axis, then to the low side.
+fn empty_space_cut(bounds: &Aabb, extent: &Aabb, n: u32) -> Option<Split> {
+    let mut best: Option<(f32, Split)> = None;
+    for axis in 0..3 {
+        let (lo, hi) = (bounds.lo[axis], bounds.hi[axis]);
+        let size = hi - lo;
+        for (gap, pos, empty_left) in [
+            (extent.lo[axis] - lo, extent.lo[axis], true),
+            (hi - extent.hi[axis], extent.hi[axis], false),
+        ] {
+            let ratio = gap / size;
+            let better = best.is_none_or(|(r, _)| ratio > r);
+            if ratio > EMPTY_SPACE_RATIO && pos > lo && pos < hi && better {
+                let (n_left, n_right) = if empty_left { (0, n) } else { (n, 0) };
+                best = Some((
+                    ratio,
+                    Split {
+                        axis,
+                        pos,
+                        planar_left: !empty_left,
+                        n_left,
+                        n_right,
+                    },
+                ));
+            }
+        }
+    }
+    best.map(|(_, split)| split)
+}
+
+/// The shared semantics' counts at `axis = pos`: `#(lo < pos)`, `#(hi > pos)` and the
+/// primitives lying in the plane.
+fn count_at(items: &[Item], axis: usize, pos: f32) -> (u32, u32, u32) {
+    items
+        .par_iter()
+        .with_min_len(MIN_ITEMS_PER_TASK)
+        .map(|it| {
+            let (lo, hi) = (it.bounds.lo[axis], it.bounds.hi[axis]);
+            (
+                (lo < pos) as u32,
+                (hi > pos) as u32,
+                (lo == pos && hi == pos) as u32,
+            )
+        })
+        .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2))
+}
+
+/// One child's items and the union of their boxes.
+struct Side {
+    items: Vec<Item>,
+    extent: Aabb,
+}
+
+impl Side {
+    fn with_capacity(n: usize) -> Side {
+        Side {
+            items: Vec::with_capacity(n),
+            extent: Aabb::EMPTY,
+        }
+    }
+    fn push(&mut self, item: Item) {
+        self.extent = self.extent.union(item.bounds);
+        self.items.push(item);
+    }
+}
+
+/// The children's items by the shared partition rule, in one pass that also gives their
+/// extents. Straddlers go to both sides with their boxes re-clipped from the triangle
+/// (`clip`) or cut to the child's box; a straddler whose clipped box is empty is dropped
+/// from that child. A large node's items are split in chunks on all threads and the chunks'
+/// results joined in order.
+fn partition(node: &Pending, split: &Split, clip: Option<&[Triangle]>) -> [Side; 2] {
+    let (axis, pos) = (split.axis, split.pos);
+    let child_boxes = {
+        let (l, r) = node.bounds.split(axis, pos);
+        [l, r]
+    };
+    let part = |items: &[Item], capacity: [usize; 2]| -> [Side; 2] {
+        let mut sides = capacity.map(Side::with_capacity);
+        for it in items {
+            let (lo, hi) = (it.bounds.lo[axis], it.bounds.hi[axis]);
+            let (left, right) = if lo == pos && hi == pos {
+                (split.planar_left, !split.planar_left)
+            } else {
+                (lo < pos, hi > pos)
+            };
+            if !(left && right) {
+                sides[right as usize].push(*it);
+                continue;
+            }
+            for (side, child_box) in sides.iter_mut().zip(&child_boxes) {
+                let bounds = match clip {
+                    Some(triangles) => clipped_bounds(&triangles[it.id as usize], child_box),
+                    None => it.bounds.intersection(*child_box),
+                };
+                if !bounds.is_empty() {
+                    side.push(Item { id: it.id, bounds });
+                }
+            }
+        }
+        sides
+    };
+    let items = &node.items;
+    let mut sides = if items.len() <= MIN_ITEMS_PER_TASK {
+        part(items, [split.n_left as usize, split.n_right as usize])
+    } else {
+        let chunks: Vec<[Side; 2]> = items
+            .par_chunks(MIN_ITEMS_PER_TASK)
+            .map(|chunk| part(chunk, [chunk.len() / 2; 2]))
+            .collect();
+        [0, 1].map(|k| Side {
+            items: concat(chunks.iter().map(|c| &c[k].items[..]).collect()),
+            extent: chunks.iter().fold(Aabb::EMPTY, |b, c| b.union(c[k].extent)),
+        })
+    };
+    for side in &mut sides {
+        side.extent = without_negative_zeros(side.extent);
+    }
+    sides
+}
+
+/// The parts one after the other, copied on all threads.
+fn concat(parts: Vec<&[Item]>) -> Vec<Item> {
+    let total = parts.iter().map(|p| p.len()).sum();
+    let blank = Item {
+        id: 0,
+        bounds: Aabb::EMPTY,
+    };
+    let mut out = vec![blank; total];
+    let mut targets = Vec::with_capacity(parts.len());
+    let mut rest = &mut out[..];
+    for part in &parts {
+        let (target, tail) = rest.split_at_mut(part.len());
+        targets.push(target);
+        rest = tail;
+    }
+    targets
+        .into_par_iter()
+        .zip(parts)
+        .for_each(|(target, part)| target.copy_from_slice(part));
+    out
+}
+
+/// The box with `-0.0` made `0.0`: which of two zeros `min` returns depends on the order in
+/// which threads combined boxes, and must not show in a split position.
+fn without_negative_zeros(b: Aabb) -> Aabb {
+    Aabb::new(b.lo + Vec3::splat(0.0), b.hi + Vec3::splat(0.0))
+}
+
+/// Builds every small node's exact SAH subtree in parallel, then places them in the tree in
+/// the order of `small`. The references the budget leaves over (`slack`) are shared among
+/// the small nodes in proportion to their primitives, so that no subtree depends on another.
+fn build_small_nodes(
+    triangles: &[Triangle],
+    small: Vec<Pending>,
+    options: &BuildOptions,
+    max_depth: u32,
+    slack: usize,
+    built: &mut BuiltTree,
+) {
+    let small_prims: usize = small.iter().map(|n| n.items.len()).sum();
+    let subtrees: Vec<(Vec<Node>, Vec<u32>)> = small
+        .par_iter()
+        .map(|node| {
+            let n = node.items.len();
+            let tris: Vec<Triangle> = node
+                .items
+                .iter()
+                .map(|it| triangles[it.id as usize])
+                .collect();
+            let boxes: Vec<Aabb> = node.items.iter().map(|it| it.bounds).collect();
+            let share = (slack as u128 * n as u128 / small_prims.max(1) as u128) as usize;
+            let subtree = Subtree {
+                triangles: &tris,
+                boxes: &boxes,
+                bounds: node.bounds,
+                depth: node.depth,
+                max_depth,
+                budget: n + share,
+            };
+            let (mut nodes, mut refs) = (Vec::new(), Vec::new());
+            sweep::build_subtree(&subtree, options, &mut nodes, &mut refs);
+            for r in refs.iter_mut() {
+                *r = node.items[*r as usize].id;
+            }
+            (nodes, refs)
+        })
+        .collect();
+    for (node, (nodes, refs)) in small.iter().zip(subtrees) {
+        let base = built.nodes.len() as u32;
+        let ref_base = built.refs.len() as u32;
+        built.nodes[node.slot as usize] = relocate(&nodes[0], base, ref_base);
+        built
+            .nodes
+            .extend(nodes[1..].iter().map(|n| relocate(n, base, ref_base)));
+        built.refs.extend_from_slice(&refs);
+    }
+}
+
+/// A subtree's node moved into the whole tree: the subtree's root takes its node's slot and
+/// its other nodes `i` (always children, so `i > 0`) go to `base + i - 1`; its references
+/// start at `ref_base`.
+fn relocate(n: &Node, base: u32, ref_base: u32) -> Node {
+    if n.is_leaf() {
+        Node::leaf(n.first() + ref_base, n.count())
+    } else {
+        Node::interior(n.axis(), n.split(), base + n.left() - 1)
+    }
+}
