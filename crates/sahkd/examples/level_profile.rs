@@ -7,11 +7,7 @@
 //!     [--clip on|off] [--threads N] [--runs 3] [--levels]
 //! ```
 
-#[path = "../tests/tiny_ply/mod.rs"]
-mod tiny_ply;
-
 use sahkd::{build, Algorithm, Axes, BuildOptions, Counting};
-use std::path::Path;
 
 fn main() {
     if let Err(e) = run() {
@@ -62,7 +58,7 @@ fn run() -> Result<(), String> {
         }
     }
     let file = file.ok_or("usage: level_profile FILE.ply [options]")?;
-    let mesh = tiny_ply::read(Path::new(&file))?;
+    let mesh = sahkd::Mesh::load(&file).map_err(|e| e.to_string())?;
     let mut times = Vec::new();
     let mut last = None;
     for _ in 0..runs.max(1) {

@@ -2,7 +2,7 @@
 //! oracle, structure, determinism over thread counts, degenerate input, agreement between the
 //! countings and with naive, and the root split against a brute-force best split.
 
-mod tiny_ply;
+mod common;
 
 use sahkd::trace::brute;
 use sahkd::{
@@ -650,7 +650,7 @@ fn reference_budget_is_respected() {
 }
 
 fn scene_test(file: &str, rays: usize) {
-    let Some(mesh) = tiny_ply::scene(file) else {
+    let Some(mesh) = common::load_scene(file) else {
         return;
     };
     for options in [
