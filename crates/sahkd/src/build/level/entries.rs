@@ -200,7 +200,7 @@ mod tests {
 
     #[test]
     fn events_sort_by_position_then_end_planar_start_then_slot() {
-        let mut evs = vec![
+        let mut evs = [
             Event::new(1.0, START, 0),
             Event::new(1.0, END, 5),
             Event::new(0.5, START, 9),

@@ -1,9 +1,12 @@
 //! Phase 5: the level's leaves write their references out, and every other node's references
 //! and sorted lists are stably partitioned into its children's segments of the next level.
 //!
-//! The next level's arrays are laid out by exclusive scans over the children's sizes (the
-//! paper's formulas (5) and (6)), and each reference is written at its child's offset plus its
-//! rank among the references going there (a segmented scan over chunks, see [`segments`]).
+//! The children a reference goes to are read off the node's list on the split axis (its
+//! entries hold the reference's extent there). The next level's arrays are laid out by
+//! exclusive scans over the children's sizes (the paper's formulas (5) and (6)), and each
+//! reference is written at its child's offset plus its rank among the references going there
+//! (a segmented scan over chunks, see [`segments`]); each list is split node by node, a large
+//! node in parallel chunks.
 //! A straddler goes to both children; with clipping it is clipped to each child's box (and
 //! dropped from a child its clipped box misses), and since its clipped box can move it in the
 //! children's sort orders, its entries are taken out of the partitioned lists, sorted on their
@@ -850,7 +853,9 @@ mod tests {
     /// A parent list, where each reference goes (order-preserving new slots per child, some
     /// dropped, some to both), and clipped entries for each child; the expected children are
     /// the sorted unions.
-    fn case(n: u32, seed: u64) -> (Vec<Event>, Vec<[u32; 2]>, [Vec<Event>; 2], [Vec<Event>; 2]) {
+    type Case = (Vec<Event>, Vec<[u32; 2]>, [Vec<Event>; 2], [Vec<Event>; 2]);
+
+    fn case(n: u32, seed: u64) -> Case {
         let mut rng = Lcg(seed);
         let events_of = |slot: u32, rng: &mut Lcg| {
             let lo = rng.next(n / 3 + 1) as f32;

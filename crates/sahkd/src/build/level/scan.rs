@@ -129,39 +129,47 @@ struct Node<'a> {
 /// segment and `before` the counts of each kind in `events[..from]`. A run may go on past
 /// `to` (to the end of the segment); a run going on at `from` belongs to whoever has its
 /// start.
-fn sweep(events: &[Event], from: usize, to: usize, mut before: [u32; 3], node: &Node) -> Found {
+fn sweep(events: &[Event], from: usize, to: usize, before: [u32; 3], node: &Node) -> Found {
     let (lo, hi) = (node.bbox.lo[node.axis], node.bbox.hi[node.axis]);
+    // Running counts in registers: starts + planars (the lo values) and ends + planars (the hi
+    // values) before the current run.
+    let (s, pl, e) = (START as usize, PLANAR as usize, END as usize);
+    let mut los = before[s] + before[pl];
+    let mut his = before[e] + before[pl];
     let mut i = from;
     if i > 0 && i < to {
         let bits = events[i - 1].pos_bits();
         while i < events.len() && events[i].pos_bits() == bits {
-            before[events[i].kind() as usize] += 1;
+            let kind = events[i].kind();
+            los += (kind != END) as u32;
+            his += (kind != START) as u32;
             i += 1;
         }
     }
     let mut found = Found::default();
     while i < to {
         let bits = events[i].pos_bits();
-        let mut run = [0u32; 3];
+        let (mut run_los, mut run_his, mut run_planar) = (0u32, 0u32, 0u32);
         while i < events.len() && events[i].pos_bits() == bits {
-            run[events[i].kind() as usize] += 1;
+            let kind = events[i].kind();
+            run_los += (kind != END) as u32;
+            run_his += (kind != START) as u32;
+            run_planar += (kind == PLANAR) as u32;
             i += 1;
         }
         let p = events[i - 1].pos();
         if lo < p && p < hi {
-            let (s, pl, e) = (START as usize, PLANAR as usize, END as usize);
             let counts = Counts {
-                left: before[s] + before[pl],
-                right: node.n - (before[e] + run[e] + before[pl] + run[pl]),
-                planar: run[pl],
+                left: los,
+                right: node.n - (his + run_his),
+                planar: run_planar,
             };
             found.offer(candidates::price(
                 node.cost, node.bbox, node.axis, p, node.owner, counts,
             ));
         }
-        for kind in 0..3 {
-            before[kind] += run[kind];
-        }
+        los += run_los;
+        his += run_his;
     }
     found
 }
