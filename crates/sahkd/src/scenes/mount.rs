@@ -17,7 +17,7 @@ use super::random::{hash3, unit_f64};
 use crate::mesh::Mesh;
 use rayon::prelude::*;
 
-const SEED: u64 = 0x6d6f_756e_74;
+const SEED: u64 = 0x006d_6f75_6e74;
 /// Offsets shrink as length^H; H near 1 gives smooth slopes with fine detail.
 const ROUGHNESS_EXPONENT: f64 = 0.9;
 /// Largest offset, at the scale of the whole field.
