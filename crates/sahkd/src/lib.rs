@@ -21,6 +21,7 @@ pub mod clip;
 pub mod cost;
 pub mod geometry;
 pub mod mesh;
+pub mod render;
 pub mod scenes;
 pub mod trace;
 pub mod tree;

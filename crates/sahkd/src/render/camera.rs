@@ -1,0 +1,138 @@
+//! The pinhole camera: where it stands, where it looks, and the ray through each pixel.
+
+use crate::geometry::{Aabb, Vec3};
+use crate::trace::Ray;
+
+/// A pinhole camera. `up` need not be perpendicular to the view direction, only not parallel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    pub eye: Vec3,
+    pub look_at: Vec3,
+    pub up: Vec3,
+    pub fov_y_degrees: f32,
+}
+
+/// The narrowest aspect ratio (width / height) `Camera::auto` frames the scene for.
+const LANDSCAPE: f32 = 4.0 / 3.0;
+
+/// Bounds with a usable centre and size: an empty or non-finite box becomes the unit cube,
+/// and a single point gets a size of 1.
+fn usable(bounds: Aabb) -> (Vec3, f32) {
+    if bounds.is_empty() || !bounds.lo.is_finite() || !bounds.hi.is_finite() {
+        return (Vec3::splat(0.5), 3f32.sqrt());
+    }
+    let d = bounds.diagonal();
+    (bounds.centre(), if d > 0.0 { d } else { 1.0 })
+}
+
+impl Camera {
+    /// The fixed benchmark camera: eye at the box centre + (0, 0, 2 x diagonal), looking at
+    /// the centre, up +y, 45 degree vertical field of view. (An empty box is taken as the unit
+    /// cube, a point as having diagonal 1.)
+    pub fn front(bounds: Aabb) -> Camera {
+        let (centre, diagonal) = usable(bounds);
+        Camera {
+            eye: centre + Vec3::new(0.0, 0.0, 2.0 * diagonal),
+            look_at: centre,
+            up: Vec3::new(0.0, 1.0, 0.0),
+            fov_y_degrees: 45.0,
+        }
+    }
+
+    /// A pleasant three-quarter view of the whole box: looking down 30 degrees from the +z
+    /// side turned 35 degrees towards +x, 40 degree vertical field of view, placed as close
+    /// as it can be with all 8 corners of the box inside a 4:3 landscape picture (or a wider
+    /// one), the box centred in the picture. The scene fills the frame, so most primary rays
+    /// hit.
+    pub fn auto(bounds: Aabb) -> Camera {
+        let (centre, diagonal) = usable(bounds);
+        let (lo, hi) = if bounds.is_empty() || !bounds.lo.is_finite() || !bounds.hi.is_finite() {
+            (Vec3::splat(0.0), Vec3::splat(1.0))
+        } else {
+            (bounds.lo, bounds.hi)
+        };
+        let (azimuth, elevation) = (35f32.to_radians(), 30f32.to_radians());
+        let back = Vec3::new(
+            azimuth.sin() * elevation.cos(),
+            elevation.sin(),
+            azimuth.cos() * elevation.cos(),
+        );
+        let fov_y_degrees = 40.0f32;
+        let forward = back * -1.0;
+        let right = forward.cross(Vec3::new(0.0, 1.0, 0.0)).normalized();
+        let up = right.cross(forward);
+        let tan = (0.5 * fov_y_degrees).to_radians().tan();
+        // The eye is centre + back * d + right * sx + up * sy. A corner at offset q from the
+        // centre is in view when |q.right - sx| <= tan_x (q.forward + d), and likewise for
+        // up. Per axis, the least d is reached with the shift halfway between the limits.
+        let fit = |axis: Vec3, tan: f32| {
+            let (mut upper, mut lower) = (f32::NEG_INFINITY, f32::INFINITY);
+            for k in 0..8 {
+                let corner = Vec3::new(
+                    if k & 1 == 0 { lo[0] } else { hi[0] },
+                    if k & 2 == 0 { lo[1] } else { hi[1] },
+                    if k & 4 == 0 { lo[2] } else { hi[2] },
+                );
+                let q = corner - centre;
+                upper = upper.max(q.dot(axis) - tan * q.dot(forward));
+                lower = lower.min(q.dot(axis) + tan * q.dot(forward));
+            }
+            ((upper - lower) / (2.0 * tan), 0.5 * (upper + lower))
+        };
+        let (d_across, shift_across) = fit(right, tan * LANDSCAPE);
+        let (d_up, shift_up) = fit(up, tan);
+        // Never inside the box, whatever its shape.
+        let distance = d_across.max(d_up).max(0.75 * diagonal);
+        let target = centre + right * shift_across + up * shift_up;
+        Camera {
+            eye: target + back * distance,
+            look_at: target,
+            up: Vec3::new(0.0, 1.0, 0.0),
+            fov_y_degrees,
+        }
+    }
+
+    /// The ray through the point (px, py) of a width x height picture, in pixel units from
+    /// the top-left corner, y down (pixel (i, j) has its centre at (i + 0.5, j + 0.5)). The
+    /// direction is unit length, so hit distances are distances from the eye.
+    pub fn primary_ray(&self, width: u32, height: u32, px: f32, py: f32) -> Ray {
+        Projection::new(self, width, height).ray(px, py)
+    }
+}
+
+/// A camera's per-picture constants, so that a renderer need not recompute the view basis
+/// for every ray. `Camera::primary_ray` goes through it too: both give the same bits.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Projection {
+    eye: Vec3,
+    forward: Vec3,
+    right: Vec3,
+    up: Vec3,
+    width: f32,
+    height: f32,
+}
+
+impl Projection {
+    pub(crate) fn new(camera: &Camera, width: u32, height: u32) -> Projection {
+        let forward = (camera.look_at - camera.eye).normalized();
+        let right = forward.cross(camera.up).normalized();
+        let up = right.cross(forward);
+        let tan = (0.5 * camera.fov_y_degrees).to_radians().tan();
+        let aspect = width as f32 / height as f32;
+        Projection {
+            eye: camera.eye,
+            forward,
+            right: right * (tan * aspect),
+            up: up * tan,
+            width: width as f32,
+            height: height as f32,
+        }
+    }
+
+    pub(crate) fn ray(&self, px: f32, py: f32) -> Ray {
+        let x = 2.0 * px / self.width - 1.0;
+        let y = 1.0 - 2.0 * py / self.height;
+        let direction = (self.forward + self.right * x + self.up * y).normalized();
+        Ray::new(self.eye, direction)
+    }
+}
