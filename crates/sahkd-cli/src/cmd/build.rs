@@ -2,8 +2,8 @@
 
 use super::Context;
 use crate::format::{self, Table};
-use crate::input::{self, MeshArg};
-use crate::options::{algorithm_name, axes_name, counting_name, switch_name, BuilderArgs};
+use crate::input::{self, Loaded, MeshArg};
+use crate::options::{algorithm_name, axes_name, counting_name, switch_name, Builder, BuilderArgs};
 use crate::progress::Progress;
 use anyhow::{bail, Result};
 use sahkd::build::LevelReport;
@@ -30,7 +30,7 @@ pub struct Args {
 
 /// The JSON report.
 #[derive(Serialize)]
-struct Report<'a> {
+pub struct Report<'a> {
     source: String,
     triangles: usize,
     algorithm: &'static str,
@@ -60,36 +60,73 @@ struct Report<'a> {
 pub fn run(args: Args, context: &Context) -> Result<()> {
     let progress = Progress::new(context.quiet, args.json);
     let builder = args.builder.builder()?;
-    let options = builder.options;
-    let loaded = builder.install(|| input::load(&args.mesh, &progress))?;
-
-    let spinner = progress.spinner(format!(
-        "building {} triangles",
-        format::count(loaded.mesh.triangles.len() as u64)
-    ));
-    let built = builder.build(&loaded.mesh);
-    spinner.finish_and_clear();
-    let built = built?;
+    let built = Built::new(&args.mesh, &builder, &progress)?;
 
     let validation = args.validate.then(|| {
         let spinner = progress.spinner("validating");
-        let result = builder.install(|| built.tree.validate());
+        let result = builder.install(|| built.build.tree.validate());
         spinner.finish_and_clear();
         result
     });
 
-    let stats = built.tree.stats(&options.cost);
-    let report = &built.report;
     if args.json {
-        format::print_json(&Report {
-            source: loaded.source.name(),
-            triangles: loaded.mesh.triangles.len(),
+        format::print_json(&built.report(&builder, validation.as_ref().map(Result::is_ok)))?;
+    } else {
+        let mut t = built.table(&builder);
+        if let Some(result) = &validation {
+            t.row(
+                "validation",
+                match result {
+                    Ok(()) => "ok".to_string(),
+                    Err(e) => format!("FAILED: {e}"),
+                },
+            );
+        }
+        format::print_text(&t.render())?;
+    }
+    if let Some(Err(e)) = validation {
+        bail!("the tree is not valid: {e}");
+    }
+    Ok(())
+}
+
+/// A mesh and its tree, and how getting them went: what `build` reports, and what every
+/// command that builds a tree (`render`) reports the same way.
+pub struct Built {
+    pub loaded: Loaded,
+    pub build: sahkd::Build,
+}
+
+impl Built {
+    /// Loads the mesh and builds its tree on the builder's threads, with spinners.
+    pub fn new(mesh: &MeshArg, builder: &Builder, progress: &Progress) -> Result<Built> {
+        let loaded = builder.install(|| input::load(mesh, progress))?;
+        let spinner = progress.spinner(format!(
+            "building {} triangles",
+            format::count(loaded.mesh.triangles.len() as u64)
+        ));
+        let build = builder.build(&loaded.mesh);
+        spinner.finish_and_clear();
+        Ok(Built {
+            loaded,
+            build: build?,
+        })
+    }
+
+    /// The JSON report; `valid` is `None` when the tree was not validated.
+    pub fn report(&self, builder: &Builder, valid: Option<bool>) -> Report<'_> {
+        let options = &builder.options;
+        let stats = self.build.tree.stats(&options.cost);
+        let report = &self.build.report;
+        Report {
+            source: self.loaded.source.name(),
+            triangles: self.loaded.mesh.triangles.len(),
             algorithm: algorithm_name(options.algorithm),
             axes: axes_name(options.axes),
             counting: counting_name(options.counting),
             clip: options.clip,
             threads: builder.threads(),
-            load_ms: loaded.load_ms,
+            load_ms: self.loaded.load_ms,
             build_ms: report.build_ms,
             presort_ms: report.presort_ms,
             sah_cost: stats.sah_cost,
@@ -103,15 +140,21 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
             mean_leaf_size: stats.mean_leaf_size,
             bytes: stats.bytes,
             peak_working_bytes: report.peak_working_bytes,
-            valid: validation.as_ref().map(Result::is_ok),
+            valid,
             levels: &report.levels,
-        })?;
-    } else {
+        }
+    }
+
+    /// The text report, one row per statistic.
+    pub fn table(&self, builder: &Builder) -> Table {
+        let options = &builder.options;
+        let stats = self.build.tree.stats(&options.cost);
+        let report = &self.build.report;
         let mut t = Table::default();
-        t.row("mesh", loaded.source.describe())
+        t.row("mesh", self.loaded.source.describe())
             .row(
                 "triangles",
-                format::count(loaded.mesh.triangles.len() as u64),
+                format::count(self.loaded.mesh.triangles.len() as u64),
             )
             .row(
                 "builder",
@@ -127,7 +170,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
                     builder.threads()
                 ),
             )
-            .row("load time", format::ms(loaded.load_ms))
+            .row("load time", format::ms(self.loaded.load_ms))
             .row("build time", format::ms(report.build_ms))
             .row("pre-sort time", format::ms(report.presort_ms))
             .row("SAH cost", format!("{:.3}", stats.sah_cost))
@@ -150,19 +193,6 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
                 "peak working memory",
                 format::bytes(report.peak_working_bytes as u64),
             );
-        if let Some(result) = &validation {
-            t.row(
-                "validation",
-                match result {
-                    Ok(()) => "ok".to_string(),
-                    Err(e) => format!("FAILED: {e}"),
-                },
-            );
-        }
-        format::print_text(&t.render())?;
+        t
     }
-    if let Some(Err(e)) = validation {
-        bail!("the tree is not valid: {e}");
-    }
-    Ok(())
 }

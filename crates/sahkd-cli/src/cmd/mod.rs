@@ -3,6 +3,7 @@
 
 pub mod build;
 pub mod info;
+pub mod render;
 pub mod trace;
 
 use anyhow::Result;
@@ -21,6 +22,8 @@ pub enum Command {
     Build(build::Args),
     /// Trace rays from a .npy file and write their hits to a .npz file
     Trace(trace::Args),
+    /// Build the kd-tree of a mesh, render a picture through it and report the ray throughput
+    Render(render::Args),
     /// Describe a mesh: counts, bounds, degenerate triangles, unused vertices
     Info(info::Args),
 }
@@ -31,6 +34,7 @@ impl Command {
             Command::Build(args) => build::run(args, context),
             Command::Trace(args) => trace::run(args, context),
             Command::Info(args) => info::run(args, context),
+            Command::Render(args) => render::run(args, context),
         }
     }
 }

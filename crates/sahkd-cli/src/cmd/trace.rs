@@ -163,7 +163,7 @@ fn trace(tree: &KdTree, rays: &[Ray], any_hit: bool, progress: &Progress) -> Hit
 }
 
 /// Fails early when the output cannot be written where asked, so a long build is not lost.
-fn check_output_path(path: &Path) -> Result<()> {
+pub(super) fn check_output_path(path: &Path) -> Result<()> {
     if path.is_dir() {
         bail!("{}: is a directory, not a file to write", path.display());
     }
