@@ -11,7 +11,7 @@ use anyhow::{bail, Context as _, Result};
 use clap::ValueEnum;
 use image::{ExtendedColorType, ImageEncoder};
 use sahkd::render::{render, Camera, Image, RayCounts, RenderOptions, Shading};
-use sahkd::{Aabb, Vec3};
+use sahkd::{KdTree, Vec3};
 use serde::Serialize;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -115,10 +115,10 @@ impl From<ShadingArg> for Shading {
 
 impl Args {
     /// The preset camera for a scene box, with the parts given on the command line replaced.
-    fn camera(&self, bounds: Aabb) -> Camera {
+    fn camera(&self, tree: &KdTree) -> Camera {
         let preset = match self.camera {
-            CameraArg::Auto => Camera::auto(bounds),
-            CameraArg::Front => Camera::front(bounds),
+            CameraArg::Auto => Camera::framing(tree),
+            CameraArg::Front => Camera::front(tree.bounds()),
         };
         Camera {
             eye: self.eye.unwrap_or(preset.eye),
@@ -128,12 +128,12 @@ impl Args {
         }
     }
 
-    fn render_options(&self, bounds: Aabb) -> RenderOptions {
+    fn render_options(&self, tree: &KdTree) -> RenderOptions {
         RenderOptions {
             shading: self.shading.into(),
             spp: self.spp,
             ao_samples: self.ao_samples,
-            ..RenderOptions::new(self.width, self.height, self.camera(bounds))
+            ..RenderOptions::new(self.width, self.height, self.camera(tree))
         }
     }
 }
@@ -169,7 +169,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
     let temporary = temporary_output(&args.output)?;
     let builder = args.builder.builder()?;
     let built = Built::new(&args.mesh, &builder, &progress)?;
-    let options = args.render_options(built.build.tree.bounds());
+    let options = args.render_options(&built.build.tree);
     if let Err(e) = options.validate() {
         bail!("cannot render: {e}");
     }

@@ -2,6 +2,7 @@
 
 use crate::geometry::{Aabb, Vec3};
 use crate::trace::Ray;
+use crate::tree::KdTree;
 
 /// A pinhole camera. `up` need not be perpendicular to the view direction, only not parallel.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -51,53 +52,135 @@ impl Camera {
         } else {
             (bounds.lo, bounds.hi)
         };
-        let (azimuth, elevation) = (35f32.to_radians(), 30f32.to_radians());
-        let back = Vec3::new(
-            azimuth.sin() * elevation.cos(),
-            elevation.sin(),
-            azimuth.cos() * elevation.cos(),
-        );
-        let fov_y_degrees = 40.0f32;
-        let forward = back * -1.0;
-        let right = forward.cross(Vec3::new(0.0, 1.0, 0.0)).normalized();
-        let up = right.cross(forward);
-        let tan = (0.5 * fov_y_degrees).to_radians().tan();
-        // The eye is centre + back * d + right * sx + up * sy. A corner at offset q from the
-        // centre is in view when |q.right - sx| <= tan_x (q.forward + d), and likewise for
-        // up. Per axis, the least d is reached with the shift halfway between the limits.
-        let fit = |axis: Vec3, tan: f32| {
-            let (mut upper, mut lower) = (f32::NEG_INFINITY, f32::INFINITY);
-            for k in 0..8 {
-                let corner = Vec3::new(
-                    if k & 1 == 0 { lo[0] } else { hi[0] },
-                    if k & 2 == 0 { lo[1] } else { hi[1] },
-                    if k & 4 == 0 { lo[2] } else { hi[2] },
-                );
-                let q = corner - centre;
-                upper = upper.max(q.dot(axis) - tan * q.dot(forward));
-                lower = lower.min(q.dot(axis) + tan * q.dot(forward));
-            }
-            ((upper - lower) / (2.0 * tan), 0.5 * (upper + lower))
-        };
-        let (d_across, shift_across) = fit(right, tan * LANDSCAPE);
-        let (d_up, shift_up) = fit(up, tan);
-        // Never inside the box, whatever its shape.
-        let distance = d_across.max(d_up).max(0.75 * diagonal);
-        let target = centre + right * shift_across + up * shift_up;
-        Camera {
-            eye: target + back * distance,
-            look_at: target,
-            up: Vec3::new(0.0, 1.0, 0.0),
-            fov_y_degrees,
-        }
+        let corners = (0..8).map(|k| {
+            Vec3::new(
+                if k & 1 == 0 { lo[0] } else { hi[0] },
+                if k & 2 == 0 { lo[1] } else { hi[1] },
+                if k & 4 == 0 { lo[2] } else { hi[2] },
+            )
+        });
+        three_quarter(centre, diagonal, corners, 1.0)
     }
 
+    /// The camera `sahkd render` calls `auto`, fitted to the tree's own triangles rather than
+    /// their box. For a scene around its box's centre (a building seen from inside, such as
+    /// Sponza, where the outside view shows only a closed box), a view from inside; else
+    /// the three-quarter view of [`Camera::auto`] moved as close as it can be with every
+    /// vertex inside the picture and a small margin, centred on the vertices' projected
+    /// extent rather than on the box (boxes of tilted or one-sided models are mostly empty).
+    pub fn framing(tree: &KdTree) -> Camera {
+        let bounds = tree.bounds();
+        let (centre, diagonal) = usable(bounds);
+        let triangles = tree.triangles();
+        if triangles.is_empty() {
+            return Camera::auto(bounds);
+        }
+        if let Some(inside) = inside_view(tree, centre) {
+            return inside;
+        }
+        let vertices = triangles.iter().flat_map(|t| t.iter().copied());
+        three_quarter(centre, diagonal, vertices, FRAMING_MARGIN)
+    }
     /// The ray through the point (px, py) of a width x height picture, in pixel units from
     /// the top-left corner, y down (pixel (i, j) has its centre at (i + 0.5, j + 0.5)). The
     /// direction is unit length, so hit distances are distances from the eye.
     pub fn primary_ray(&self, width: u32, height: u32, px: f32, py: f32) -> Ray {
         Projection::new(self, width, height).ray(px, py)
     }
+}
+
+/// The share of the picture's half-width and half-height `Camera::framing` fills.
+const FRAMING_MARGIN: f32 = 0.92;
+/// Directions `inside_view` probes from the box's centre.
+const PROBES: usize = 256;
+/// A scene encloses its centre when at least this share of the probes hit a triangle that
+/// faces the centre (as a room's walls do; the inside of a closed object faces away).
+const ENCLOSED: f32 = 0.8;
+
+/// The three-quarter view of `auto` as close as it can be with every point inside the middle
+/// `margin` of a 4:3 (or wider) picture, the points' projected extent centred.
+fn three_quarter(
+    centre: Vec3,
+    diagonal: f32,
+    points: impl Iterator<Item = Vec3> + Clone,
+    margin: f32,
+) -> Camera {
+    let (azimuth, elevation) = (35f32.to_radians(), 30f32.to_radians());
+    let back = Vec3::new(
+        azimuth.sin() * elevation.cos(),
+        elevation.sin(),
+        azimuth.cos() * elevation.cos(),
+    );
+    let fov_y_degrees = 40.0f32;
+    let forward = back * -1.0;
+    let right = forward.cross(Vec3::new(0.0, 1.0, 0.0)).normalized();
+    let up = right.cross(forward);
+    let tan = (0.5 * fov_y_degrees).to_radians().tan() * margin;
+    // The eye is centre + back * d + right * sx + up * sy. A point at offset q from the
+    // centre is in view when |q.right - sx| <= tan_x (q.forward + d), and likewise for
+    // up. Per axis, the least d is reached with the shift halfway between the limits.
+    let fit = |axis: Vec3, tan: f32| {
+        let (mut upper, mut lower) = (f32::NEG_INFINITY, f32::INFINITY);
+        for p in points.clone() {
+            let q = p - centre;
+            upper = upper.max(q.dot(axis) - tan * q.dot(forward));
+            lower = lower.min(q.dot(axis) + tan * q.dot(forward));
+        }
+        ((upper - lower) / (2.0 * tan), 0.5 * (upper + lower))
+    };
+    let (d_across, shift_across) = fit(right, tan * LANDSCAPE);
+    let (d_up, shift_up) = fit(up, tan);
+    // Never inside the box, whatever its shape.
+    let distance = d_across.max(d_up).max(0.75 * diagonal);
+    let target = centre + right * shift_across + up * shift_up;
+    Camera {
+        eye: target + back * distance,
+        look_at: target,
+        up: Vec3::new(0.0, 1.0, 0.0),
+        fov_y_degrees,
+    }
+}
+
+/// A view from inside when the scene surrounds the centre of its box, `None` otherwise.
+/// The eye backs away from the centre along the longer horizontal axis, as far as a fifth
+/// of the box's length or most of the way to the first wall, and looks across the centre
+/// with a wide (60 degree) field of view.
+fn inside_view(tree: &KdTree, centre: Vec3) -> Option<Camera> {
+    let triangles = tree.triangles();
+    let mut facing = 0;
+    for k in 0..PROBES {
+        // Fibonacci sphere: evenly spread, deterministic directions.
+        let z = 1.0 - (2 * k + 1) as f32 / PROBES as f32;
+        let phi = k as f32 * std::f32::consts::PI * (3.0 - 5f32.sqrt());
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        let direction = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+        if let Some(hit) = tree.intersect(&Ray::new(centre, direction)) {
+            let [a, b, c] = triangles[hit.prim as usize];
+            if (b - a).cross(c - a).dot(direction) < 0.0 {
+                facing += 1;
+            }
+        }
+    }
+    if (facing as f32) < ENCLOSED * PROBES as f32 {
+        return None;
+    }
+    let extent = tree.bounds().extent();
+    let axis = if extent[0] >= extent[2] {
+        Vec3::new(1.0, 0.0, 0.0)
+    } else {
+        Vec3::new(0.0, 0.0, 1.0)
+    };
+    let length = extent[0].max(extent[2]);
+    let wall = tree
+        .intersect(&Ray::new(centre, axis * -1.0))
+        .map_or(f32::INFINITY, |h| h.t);
+    let back = (0.2 * length).min(0.8 * wall);
+    Some(Camera {
+        eye: centre - axis * back,
+        look_at: centre,
+        up: Vec3::new(0.0, 1.0, 0.0),
+        fov_y_degrees: 60.0,
+    })
 }
 
 /// A camera's per-picture constants, so that a renderer need not recompute the view basis

@@ -48,9 +48,10 @@ impl std::str::FromStr for Shading {
 /// left of both cameras, so that shadows fall to the right where they can be seen.
 pub const SUN_DIRECTION: Vec3 = Vec3::new(-0.436_435_8, 0.872_871_6, 0.218_217_9);
 /// Surface colour of the lit modes.
-const ALBEDO: [f32; 3] = [0.9, 0.87, 0.8];
-const SKY_TOP: [f32; 3] = [0.45, 0.6, 0.85];
-const SKY_BOTTOM: [f32; 3] = [0.93, 0.93, 0.95];
+const ALBEDO: [f32; 3] = [0.85, 0.82, 0.76];
+// Darker than the lit albedo at the horizon, so that pale models stand out from the sky.
+const SKY_TOP: [f32; 3] = [0.3, 0.45, 0.72];
+const SKY_BOTTOM: [f32; 3] = [0.74, 0.79, 0.86];
 
 /// The background seen along a ray: a plain gradient from pale at and below the horizon
 /// to blue straight up.
@@ -93,7 +94,8 @@ pub(crate) fn lit(intensity: f32) -> [f32; 3] {
 pub(crate) fn diffuse_intensity(normal: Vec3, ray: &Ray, sun_cosine: f32, sunlit: bool) -> f32 {
     let headlight = -normal.dot(ray.direction.normalized());
     let sun = if sunlit { sun_cosine } else { 0.0 };
-    0.1 + 0.3 * headlight.max(0.0) + 0.7 * sun
+    // At most 1: a surface facing both the eye and the sun is lit, not clipped white.
+    0.08 + 0.25 * headlight.max(0.0) + 0.67 * sun
 }
 
 /// A display colour in bytes: clamped to [0, 1], scaled to 255 and rounded.
