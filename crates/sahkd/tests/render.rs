@@ -206,6 +206,112 @@ fn auto_camera_frames_the_whole_box_tightly() {
     }
 }
 
+/// Screen coordinates in [-1, 1] of a 4:3 picture of point `p`, and its depth.
+fn project(c: &Camera, p: Vec3) -> (f32, f32, f32) {
+    let forward = (c.look_at - c.eye).normalized();
+    let right = forward.cross(c.up).normalized();
+    let up = right.cross(forward);
+    let tan = (0.5 * c.fov_y_degrees).to_radians().tan();
+    let q = p - c.eye;
+    let depth = q.dot(forward);
+    (
+        q.dot(right) / depth / (tan * 4.0 / 3.0),
+        q.dot(up) / depth / tan,
+        depth,
+    )
+}
+
+#[test]
+fn framing_fits_every_vertex_into_the_picture_with_a_small_margin() {
+    for spec in ["spd:tetra:1000", "spd:sphereflake:3000", "spd:toys:600"] {
+        let (mesh, tree) = scene(spec);
+        let c = Camera::framing(&tree);
+        assert!(c.eye[1] > c.look_at[1], "{spec}: looks down on the scene");
+        let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+        for &v in &mesh.vertices {
+            let (x, y, depth) = project(&c, Vec3::new(v[0], v[1], v[2]));
+            assert!(depth > 0.0, "{spec}: vertex {v:?} behind the camera");
+            assert!(
+                x.abs() <= 0.95 && y.abs() <= 0.95,
+                "{spec}: vertex {v:?} at ({x}, {y}), outside the margin"
+            );
+            lo = [lo[0].min(x), lo[1].min(y)];
+            hi = [hi[0].max(x), hi[1].max(y)];
+        }
+        // Tight along one axis and centred along both: the model is neither small nor
+        // off to one side (as it was when the 8 corners of the box were fitted).
+        let fill = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+        assert!(fill > 1.8, "{spec}: the model fills only {fill} of 2");
+        for a in 0..2 {
+            assert!(
+                (hi[a] + lo[a]).abs() < 0.01,
+                "{spec}: off-centre on axis {a}: {} .. {}",
+                lo[a],
+                hi[a]
+            );
+        }
+    }
+}
+
+/// The 12 triangles of a box's faces, facing inwards (a room) or outwards (a solid).
+fn cube(inwards: bool) -> Mesh {
+    let vertices = (0..8)
+        .map(|k| {
+            [
+                if k & 1 == 0 { -2.0 } else { 2.0 },
+                if k & 2 == 0 { 0.0 } else { 3.0 },
+                if k & 4 == 0 { -1.0 } else { 1.0 },
+            ]
+        })
+        .collect();
+    // Counter-clockwise seen from outside: outward normals.
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let triangles = quads
+        .iter()
+        .flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]])
+        .map(|[a, b, c]| if inwards { [a, c, b] } else { [a, b, c] })
+        .collect();
+    Mesh {
+        vertices,
+        triangles,
+    }
+}
+
+#[test]
+fn framing_looks_at_a_room_from_inside_and_at_a_solid_from_outside() {
+    let room = build(&cube(true), &BuildOptions::default()).unwrap().tree;
+    let solid = build(&cube(false), &BuildOptions::default()).unwrap().tree;
+    // The normals of the room face its centre.
+    let centre = room.bounds().centre();
+    for t in room.triangles() {
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        assert!(n.dot(centre - t[0]) > 0.0);
+    }
+    let inside = |p: Vec3| (0..3).all(|a| p[a] > room.bounds().lo[a] && p[a] < room.bounds().hi[a]);
+    let c = Camera::framing(&room);
+    assert!(inside(c.eye), "room: eye {:?} outside", c.eye);
+    // Backed away along the long (x) axis, looking across the centre.
+    assert!(c.eye[0] < centre[0] - 0.5, "{:?}", c.eye);
+    assert_eq!(c.look_at, centre);
+    // Every pixel of the room picture is wall.
+    let (image, _) = quiet(&room, &RenderOptions::new(32, 24, c));
+    for y in 0..24 {
+        for x in 0..32 {
+            let ray = c.primary_ray(32, 24, x as f32 + 0.5, y as f32 + 0.5);
+            assert_ne!(image.pixel(x, y), to_rgb8(background(&ray)), "({x}, {y})");
+        }
+    }
+    let c = Camera::framing(&solid);
+    assert!(!inside(c.eye), "solid: eye {:?} inside", c.eye);
+}
+
 #[test]
 fn ambient_occlusion_leaves_a_convex_object_unoccluded() {
     // A sphere cannot shadow itself: every AO ray escapes, so every hit pixel is equally

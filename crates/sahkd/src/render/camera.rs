@@ -132,6 +132,16 @@ fn three_quarter(
     let (d_up, shift_up) = fit(up, tan);
     // Never inside the box, whatever its shape.
     let distance = d_across.max(d_up).max(0.75 * diagonal);
+    // The shifts centre the points at each axis's own least distance; at a greater one,
+    // perspective moves them off centre, so centre them again at the distance chosen.
+    let (shift_across, shift_up) = if margin < 1.0 {
+        (
+            centred_shift(points.clone(), centre, right, forward, distance),
+            centred_shift(points, centre, up, forward, distance),
+        )
+    } else {
+        (shift_across, shift_up)
+    };
     let target = centre + right * shift_across + up * shift_up;
     Camera {
         eye: target + back * distance,
@@ -139,6 +149,45 @@ fn three_quarter(
         up: Vec3::new(0.0, 1.0, 0.0),
         fov_y_degrees,
     }
+}
+
+/// The shift s along `axis` that centres the points in the picture of an eye at distance
+/// `distance`: their screen coordinates (q.axis - s) / (q.forward + distance) range
+/// symmetrically about 0. Both extremes decrease as s grows, so bisection finds it.
+fn centred_shift(
+    points: impl Iterator<Item = Vec3>,
+    centre: Vec3,
+    axis: Vec3,
+    forward: Vec3,
+    distance: f32,
+) -> f32 {
+    let projected: Vec<(f32, f32)> = points
+        .map(|p| {
+            let q = p - centre;
+            (q.dot(axis), q.dot(forward) + distance)
+        })
+        .collect();
+    let (mut lo, mut hi) = projected
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &(a, _)| {
+            (lo.min(a), hi.max(a))
+        });
+    for _ in 0..40 {
+        let s = 0.5 * (lo + hi);
+        let (least, most) =
+            projected
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, m), &(a, depth)| {
+                    let x = (a - s) / depth;
+                    (l.min(x), m.max(x))
+                });
+        if least + most > 0.0 {
+            lo = s;
+        } else {
+            hi = s;
+        }
+    }
+    0.5 * (lo + hi)
 }
 
 /// A view from inside when the scene surrounds the centre of its box, `None` otherwise.
