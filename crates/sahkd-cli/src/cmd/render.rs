@@ -29,12 +29,12 @@ pub struct Args {
     pub output: PathBuf,
 
     /// Picture width in pixels
-    #[arg(long, value_name = "PIXELS", default_value_t = 1024,
+    #[arg(long, value_name = "PIXELS", allow_negative_numbers = true, default_value_t = 1024,
           value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub width: u32,
 
     /// Picture height in pixels
-    #[arg(long, value_name = "PIXELS", default_value_t = 768,
+    #[arg(long, value_name = "PIXELS", allow_negative_numbers = true, default_value_t = 768,
           value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub height: u32,
 
@@ -65,12 +65,12 @@ pub struct Args {
     pub shading: ShadingArg,
 
     /// Samples (primary rays) per pixel, jittered and averaged when more than 1
-    #[arg(long, value_name = "N", default_value_t = 1,
+    #[arg(long, value_name = "N", allow_negative_numbers = true, default_value_t = 1,
           value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub spp: u32,
 
     /// Ambient occlusion rays per hit
-    #[arg(long, value_name = "N", default_value_t = 16,
+    #[arg(long, value_name = "N", allow_negative_numbers = true, default_value_t = 16,
           value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub ao_samples: u32,
 
