@@ -38,8 +38,9 @@ pub struct Args {
           value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub height: u32,
 
-    /// Camera placement: `auto` frames the whole scene from above and to the side, `front`
-    /// is the fixed benchmark view from +z; --eye, --look-at, --up and --fov override it
+    /// Camera placement: `auto` frames the whole scene from above and to the side (or looks
+    /// from inside a scene that surrounds its centre, such as a courtyard), `front` is the
+    /// fixed benchmark view from +z; --eye, --look-at, --up and --fov override its parts
     #[arg(long, value_enum, value_name = "VIEW", default_value_t = CameraArg::Auto)]
     pub camera: CameraArg,
 
@@ -86,7 +87,7 @@ pub struct Args {
 /// The camera presets of `sahkd::render::Camera`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum CameraArg {
-    /// Three-quarter view from above that frames the whole scene
+    /// Three-quarter view from above that frames the whole scene, or a view from inside
     Auto,
     /// Fixed view from +z, two scene diagonals away (the benchmark camera)
     Front,
