@@ -99,6 +99,16 @@ fn run() -> Result<(), String> {
         stats.max_depth,
         stats.mean_leaf_size
     );
+    // A digest of the node and reference arrays: equal digests before and after a change to
+    // a builder say it still writes the same tree.
+    let digest = {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        b.tree.nodes().hash(&mut h);
+        b.tree.refs().hash(&mut h);
+        h.finish()
+    };
+    println!("tree digest {digest:016x}");
     let sum = |f: &dyn Fn(&sahkd::build::LevelReport) -> f64| -> f64 {
         b.report.levels.iter().map(f).sum()
     };

@@ -72,38 +72,70 @@ impl CostModel {
     /// without area, the cost is infinite so that no builder ever picks it.
     #[inline]
     pub fn split_cost(&self, node: &Aabb, axis: usize, pos: f32, nl: u32, nr: u32) -> f32 {
+        self.splits_of(node, axis).cost(pos, nl, nr)
+    }
+
+    /// [`split_cost`](Self::split_cost) for many planes of one node and axis: what depends
+    /// only on the node is computed once (bit-identical costs).
+    #[inline]
+    pub fn splits_of(&self, node: &Aabb, axis: usize) -> SplitPricer {
         let lo = node.lo[axis];
         let hi = node.hi[axis];
-        if !(pos > lo && pos < hi) {
-            return f32::INFINITY;
-        }
         let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
         // Extents are scaled by the largest one, so that scenes near 1e30 do not overflow
         // the products to infinity (and the ratio to NaN).
         let d = [hi - lo, node.hi[b] - node.lo[b], node.hi[c] - node.lo[c]];
         let scale = d[0].max(d[1]).max(d[2]);
-        if !(scale > 0.0 && scale.is_finite()) {
-            return f32::INFINITY;
-        }
         let inv = 1.0 / scale;
         let (db, dc) = (d[1] * inv, d[2] * inv);
         // Half surface areas: the factor 2 cancels in the ratio.
         let face = db * dc;
         let perimeter = db + dc;
         let area = face + d[0] * inv * perimeter;
-        if !(area > 0.0) {
+        SplitPricer {
+            lo,
+            hi,
+            inv,
+            face,
+            perimeter,
+            area,
+            valid: scale > 0.0 && scale.is_finite() && area > 0.0,
+            model: *self,
+        }
+    }
+}
+
+/// The split costs of one node along one axis (see [`CostModel::splits_of`]).
+#[derive(Clone, Copy, Debug)]
+pub struct SplitPricer {
+    lo: f32,
+    hi: f32,
+    inv: f32,
+    face: f32,
+    perimeter: f32,
+    area: f32,
+    /// False for a node without area (or with non-finite extents): every split is infinite.
+    valid: bool,
+    model: CostModel,
+}
+
+impl SplitPricer {
+    /// The cost of the plane at `pos` with `nl` primitives left and `nr` right.
+    #[inline]
+    pub fn cost(&self, pos: f32, nl: u32, nr: u32) -> f32 {
+        if !(pos > self.lo && pos < self.hi && self.valid) {
             return f32::INFINITY;
         }
-        let area_l = face + (pos - lo) * inv * perimeter;
-        let area_r = face + (hi - pos) * inv * perimeter;
+        let area_l = self.face + (pos - self.lo) * self.inv * self.perimeter;
+        let area_r = self.face + (self.hi - pos) * self.inv * self.perimeter;
         let bonus = if nl == 0 || nr == 0 {
-            self.empty_bonus
+            self.model.empty_bonus
         } else {
             1.0
         };
         bonus
-            * (self.traversal
-                + self.intersection * (area_l * nl as f32 + area_r * nr as f32) / area)
+            * (self.model.traversal
+                + self.model.intersection * (area_l * nl as f32 + area_r * nr as f32) / self.area)
     }
 }
 

@@ -5,7 +5,7 @@
 //! search and no second pass.
 
 use super::segments::{Prefix, Scatter, Tally};
-use crate::cost::CostModel;
+use crate::cost::{CostModel, SplitPricer};
 use crate::geometry::Aabb;
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
@@ -183,13 +183,19 @@ pub(super) fn price(
     owner: u32,
     c: Counts,
 ) -> Candidate {
+    price_with(&cost.splits_of(node, axis), pos, owner, c)
+}
+
+/// [`price`] with the node's costs along the axis prepared (the same costs, bit for bit).
+#[inline]
+pub(super) fn price_with(splits: &SplitPricer, pos: f32, owner: u32, c: Counts) -> Candidate {
     let pos = pos + 0.0;
     let finite = |x: f32| if x.is_nan() { f32::INFINITY } else { x };
-    let left = finite(cost.split_cost(node, axis, pos, c.left + c.planar, c.right));
+    let left = finite(splits.cost(pos, c.left + c.planar, c.right));
     let (value, planar_left) = if c.planar == 0 {
         (left, true)
     } else {
-        let right = finite(cost.split_cost(node, axis, pos, c.left, c.right + c.planar));
+        let right = finite(splits.cost(pos, c.left, c.right + c.planar));
         if left <= right {
             (left, true)
         } else {

@@ -21,7 +21,7 @@ use super::entries::{Event, END, PLANAR, START};
 use super::segments::CHUNK;
 use super::{ms_since, Level};
 use crate::build::LevelReport;
-use crate::cost::CostModel;
+use crate::cost::{CostModel, SplitPricer};
 use crate::geometry::Aabb;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -63,7 +63,7 @@ pub(super) fn price(
                     bbox: &level.boxes[k],
                     axis,
                     owner: k as u32,
-                    cost,
+                    splits: cost.splits_of(&level.boxes[k], axis),
                 };
                 let found = if events.len() >= PARALLEL_SWEEP {
                     sweep_chunks(events, &node)
@@ -122,7 +122,8 @@ struct Node<'a> {
     bbox: &'a Aabb,
     axis: usize,
     owner: u32,
-    cost: &'a CostModel,
+    /// The node's split costs along the axis, prepared once per sweep.
+    splits: SplitPricer,
 }
 
 /// Counts and prices the runs that start in `events[from..to]`, where `events` is one node's
@@ -164,9 +165,7 @@ fn sweep(events: &[Event], from: usize, to: usize, before: [u32; 3], node: &Node
                 right: node.n - (his + run_his),
                 planar: run_planar,
             };
-            found.offer(candidates::price(
-                node.cost, node.bbox, node.axis, p, node.owner, counts,
-            ));
+            found.offer(candidates::price_with(&node.splits, p, node.owner, counts));
         }
         los += run_los;
         his += run_his;
@@ -232,7 +231,7 @@ mod tests {
             bbox: &bbox,
             axis: 1,
             owner: 0,
-            cost: &cost,
+            splits: cost.splits_of(&bbox, 1),
         };
         let run = |parallel: bool| {
             let f = if parallel {
