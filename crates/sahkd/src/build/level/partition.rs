@@ -730,16 +730,42 @@ fn split_merging<E: ListEntry>(
     // compiler from turning the select back into a branch. Clipped entries are rare, so the
     // test for one due before the entry is well predicted.
     let mut trash = first;
-    let trash: *mut E = &mut trash;
     let mut w = at;
     let mut j = [0usize; 2];
+    // Most segments have no clipped entries to merge: they take a loop without the test.
+    if clipped[0].is_empty() && clipped[1].is_empty() {
+        split_loop::<E, false>(seg, slot_map, clipped, sink, &mut w, &mut j, &mut trash);
+    } else {
+        split_loop::<E, true>(seg, slot_map, clipped, sink, &mut w, &mut j, &mut trash);
+    }
+    for side in 0..2 {
+        for &e in &clipped[side][j[side]..] {
+            unsafe { sink.write(w[side], e) };
+            w[side] += 1;
+        }
+    }
+}
+
+/// The loop of [`split_merging`] over `seg`, from the places `w` and clipped entries `j`
+/// (merging them only when `MERGE`).
+#[inline(always)]
+fn split_loop<E: ListEntry, const MERGE: bool>(
+    seg: &[E],
+    slot_map: &[[u32; 2]],
+    clipped: [&[E]; 2],
+    sink: &Scatter<E>,
+    w: &mut [usize; 2],
+    j: &mut [usize; 2],
+    trash: &mut E,
+) {
+    let trash: *mut E = trash;
     for e in seg {
         let m = slot_map[e.slot() as usize];
         for side in 0..2 {
             let keep = m[side] != NONE;
             let moved = e.with_slot(m[side]);
             let new = clipped[side];
-            while j[side] < new.len() && new[j[side]].key() < moved.key() && keep {
+            while MERGE && j[side] < new.len() && new[j[side]].key() < moved.key() && keep {
                 // Safety: the child's segment on this axis belongs to this task, and its
                 // places are taken in order, once each.
                 unsafe { sink.write(w[side], new[j[side]]) };
@@ -750,12 +776,6 @@ fn split_merging<E: ListEntry>(
             // Safety: as above, or the local.
             unsafe { dst.write_volatile(moved) };
             w[side] += keep as usize;
-        }
-    }
-    for side in 0..2 {
-        for &e in &clipped[side][j[side]..] {
-            unsafe { sink.write(w[side], e) };
-            w[side] += 1;
         }
     }
 }
