@@ -1,8 +1,8 @@
-//! Profiles one build of a shared-scene PLY: build time (median of runs), tree statistics and
-//! the per-level report.
+//! Profiles one build of a shared-scene PLY or a procedural scene (`spd:KIND:N`): build time
+//! (median of runs), tree statistics, a digest of the tree and the per-level report.
 //!
 //! ```text
-//! cargo run --release -p sahkd --example level_profile -- FILE.ply \
+//! cargo run --release -p sahkd --example level_profile -- FILE.ply|spd:KIND:N \
 //!     [--algorithm level|naive|sweep] [--counting scan|space-tree] [--axes longest|all] \
 //!     [--clip on|off] [--threads N] [--runs 3] [--levels]
 //! ```
@@ -57,8 +57,12 @@ fn run() -> Result<(), String> {
             _ => return Err(format!("unexpected argument {a}")),
         }
     }
-    let file = file.ok_or("usage: level_profile FILE.ply [options]")?;
-    let mesh = sahkd::Mesh::load(&file).map_err(|e| e.to_string())?;
+    let file = file.ok_or("usage: level_profile FILE.ply|spd:KIND:N [options]")?;
+    let mesh = if file.starts_with("spd:") {
+        sahkd::scenes::generate(&file)?
+    } else {
+        sahkd::Mesh::load(&file).map_err(|e| e.to_string())?
+    };
     let mut times = Vec::new();
     let mut last = None;
     for _ in 0..runs.max(1) {
