@@ -149,6 +149,8 @@ fn bench_writes_every_file_and_its_trees_are_the_librarys() {
         assert_eq!(rays.len(), if naive_skipped { 3 } else { 4 }, "{spec}");
         for r in rays {
             assert_eq!(r["primary"]["rays"], 40 * 30, "{r}");
+            check_spread(&r["primary_mrays"], 2);
+            check_spread(&r["ao_mrays"], 2);
             let ao = r["ao"]["rays"].as_u64().unwrap();
             assert!(ao > 0 && ao <= 16 * 16 * 3 && ao % 3 == 0, "{r}");
             // Some rays miss the scene box and visit no node; the counted ones hit it.
@@ -170,6 +172,9 @@ fn bench_writes_every_file_and_its_trees_are_the_librarys() {
         for (i, p) in points.iter().enumerate() {
             assert_eq!(p["level"], i + 1);
             check_spread(&p["t_ms"], 2);
+            check_spread(&p["after_sort_ms"], 2);
+            let ratio = f(&p["after_sort_ms"]["median"]) / f(&points[0]["after_sort_ms"]["median"]);
+            assert!((f(&p["p"]) - ratio).abs() < 1e-12, "{p}");
         }
     }
 

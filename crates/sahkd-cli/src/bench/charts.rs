@@ -206,7 +206,7 @@ pub fn fig1(path: &Path, results: &Results) -> Result<()> {
             .x_labels(results.settings.fig1_levels as usize)
             .x_label_formatter(&|x| format!("{x:.0}"))
             .x_desc("levels built, n (tree depth limited to n)")
-            .y_desc("P_n = (T_n - T_sort) / (T_1 - T_sort)")
+            .y_desc("P_n = median(T_n - T_sort) / median(T_1 - T_sort)")
             .label_style((FONT, 18))
             .axis_desc_style((FONT, 20))
             .draw()

@@ -202,6 +202,10 @@ pub struct Measured {
 #[derive(Serialize)]
 pub struct RayRow {
     pub algorithm: &'static str,
+    /// Mrays/s of each of the `repeat` renders (after a warm-up render).
+    pub primary_mrays: Spread,
+    pub ao_mrays: Spread,
+    /// Counts of the last render (rays, nodes and triangles per ray are the same every time).
     pub primary: RayCounts,
     pub ao: RayCounts,
 }
@@ -218,12 +222,22 @@ pub struct LevelCurve {
 #[derive(Serialize)]
 pub struct LevelPoint {
     pub level: u32,
-    /// Build time with the depth limited to `level`.
+    /// T_n: build time with the depth limited to `level`.
     pub t_ms: Spread,
-    /// The pre-sort part of those builds.
+    /// T_sort: the pre-sort part of those builds.
     pub presort_ms: Spread,
-    /// P_n = (T_n - T_sort) / (T_1 - T_sort), from the medians.
+    /// T_n - T_sort of each build (taken within a build, so the sort's noise cancels).
+    pub after_sort_ms: Spread,
+    /// P_n = median(T_n - T_sort) / median(T_1 - T_sort).
     pub p: f64,
+}
+
+/// Build times over the repeats: whole builds and their pre-sort parts.
+pub struct BuildTimes {
+    pub total: Spread,
+    pub presort: Spread,
+    /// Whole build minus pre-sort, build by build.
+    pub after_sort: Spread,
 }
 
 /// Builds once to warm up, then `repeat` times; `step` is called after every build.
@@ -233,25 +247,31 @@ pub fn measure_builds(
     mesh: &Mesh,
     repeat: usize,
     step: &dyn Fn(),
-) -> Result<(Spread, Spread, sahkd::Build)> {
+) -> Result<(BuildTimes, sahkd::Build)> {
     let mut last = builder.build(mesh)?;
     step();
-    let (mut total, mut presort) = (Vec::new(), Vec::new());
+    let (mut total, mut presort, mut after_sort) = (Vec::new(), Vec::new(), Vec::new());
     for _ in 0..repeat {
         last = builder.build(mesh)?;
         total.push(last.report.build_ms);
         presort.push(last.report.presort_ms);
+        after_sort.push(last.report.build_ms - last.report.presort_ms);
         step();
     }
-    Ok((Spread::of(total), Spread::of(presort), last))
+    let times = BuildTimes {
+        total: Spread::of(total),
+        presort: Spread::of(presort),
+        after_sort: Spread::of(after_sort),
+    };
+    Ok((times, last))
 }
 
 /// A build's times and tree statistics.
-pub fn measured(build: &sahkd::Build, options: &BuildOptions, times: (Spread, Spread)) -> Measured {
+pub fn measured(build: &sahkd::Build, options: &BuildOptions, times: BuildTimes) -> Measured {
     let stats = build.tree.stats(&options.cost);
     Measured {
-        build_ms: times.0,
-        presort_ms: times.1,
+        build_ms: times.total,
+        presort_ms: times.presort,
         sah_cost: stats.sah_cost,
         nodes: stats.nodes,
         leaves: stats.leaves,
@@ -263,8 +283,15 @@ pub fn measured(build: &sahkd::Build, options: &BuildOptions, times: (Spread, Sp
 }
 
 /// Primary rays (normal shading, `width` x `height`) and AO rays (`ao_size` squared pixels,
-/// `ao_samples` per hit) through `tree`, from the fixed front camera, on `pool`'s threads.
-pub fn measure_rays(pool: &Builder, tree: &KdTree, rays: &RaySettings) -> (RayCounts, RayCounts) {
+/// `ao_samples` per hit) through `tree`, from the fixed front camera, on `pool`'s threads:
+/// one warm-up render of each, then `repeat`.
+pub fn measure_rays(
+    pool: &Builder,
+    tree: &KdTree,
+    rays: &RaySettings,
+    repeat: usize,
+    algorithm: &'static str,
+) -> RayRow {
     let camera = Camera::front(tree.bounds());
     let primary = RenderOptions::new(rays.width, rays.height, camera);
     let ao = RenderOptions {
@@ -273,9 +300,25 @@ pub fn measure_rays(pool: &Builder, tree: &KdTree, rays: &RaySettings) -> (RayCo
         ..RenderOptions::new(rays.ao_size, rays.ao_size, camera)
     };
     pool.install(|| {
-        let (_, p) = render(tree, &primary, &|_, _| {});
-        let (_, a) = render(tree, &ao, &|_, _| {});
-        (p.primary, a.occlusion)
+        let once = || {
+            let (_, p) = render(tree, &primary, &|_, _| {});
+            let (_, a) = render(tree, &ao, &|_, _| {});
+            (p.primary, a.occlusion)
+        };
+        let mut last = once();
+        let (mut p, mut a) = (Vec::new(), Vec::new());
+        for _ in 0..repeat {
+            last = once();
+            p.push(last.0.mrays_per_s);
+            a.push(last.1.mrays_per_s);
+        }
+        RayRow {
+            algorithm,
+            primary_mrays: Spread::of(p),
+            ao_mrays: Spread::of(a),
+            primary: last.0,
+            ao: last.1,
+        }
     })
 }
 

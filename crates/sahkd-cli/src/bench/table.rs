@@ -234,9 +234,16 @@ fn rays(md: &mut String, results: &Results) {
         md,
         "Camera {}. Primary rays: one per pixel of a {} x {} picture. Ambient occlusion: a {} x {} \
          picture, {} rays per hit, reaching 0.1 scene diagonal. {} threads; each ray type timed \
-         on its own (one render each); nodes visited and triangles tested are means over every \
-         7th pixel's rays.\n",
-        r.camera, r.width, r.height, r.ao_size, r.ao_size, r.ao_samples, r.threads
+         on its own; Mrays/s median (min–max) of {} renders after a warm-up; nodes visited and \
+         triangles tested are means over every 7th pixel's rays.\n",
+        r.camera,
+        r.width,
+        r.height,
+        r.ao_size,
+        r.ao_size,
+        r.ao_samples,
+        r.threads,
+        results.settings.repeat
     );
     let _ = writeln!(
         md,
@@ -249,15 +256,15 @@ fn rays(md: &mut String, results: &Results) {
             let (p, a) = (&row.primary, &row.ao);
             let _ = writeln!(
                 md,
-                "| {} | {} | {} | {:.2} | {:.1} | {:.1} | {} | {:.2} | {:.1} | {:.1} |",
+                "| {} | {} | {} | {} | {:.1} | {:.1} | {} | {} | {:.1} | {:.1} |",
                 scene.label,
                 row.algorithm,
                 format::count(p.rays),
-                p.mrays_per_s,
+                spread(&row.primary_mrays),
                 p.nodes_per_ray,
                 p.triangles_per_ray,
                 format::count(a.rays),
-                a.mrays_per_s,
+                spread(&row.ao_mrays),
                 a.nodes_per_ray,
                 a.triangles_per_ray,
             );
@@ -279,13 +286,14 @@ fn levels(md: &mut String, results: &Results) {
         "T_n: build time with the depth limited to n (the same builder and options; for the \
          depth-first sweep this is the only way to stop after n levels, and the level builder is \
          measured the same way). T_sort: the pre-sort part of those builds. \
-         P_n = (T_n - T_sort) / (T_1 - T_sort) from the medians.\n"
+         P_n = median(T_n - T_sort) / median(T_1 - T_sort), the differences taken build by \
+         build.\n"
     );
     let _ = write!(md, "| n |");
     for c in &results.levels {
         let _ = write!(
             md,
-            " {0} T_n ms ({1} thr.) | {0} T_sort ms | {0} P_n |",
+            " {0} T_n ms ({1} thr.) | {0} T_sort ms | {0} T_n - T_sort ms | {0} P_n |",
             c.algorithm, c.threads
         );
     }
@@ -293,7 +301,7 @@ fn levels(md: &mut String, results: &Results) {
     let _ = writeln!(
         md,
         "|---:|{}",
-        "---:|---:|---:|".repeat(results.levels.len())
+        "---:|---:|---:|---:|".repeat(results.levels.len())
     );
     for (i, point) in first.points.iter().enumerate() {
         let _ = write!(md, "| {} |", point.level);
@@ -301,9 +309,10 @@ fn levels(md: &mut String, results: &Results) {
             let p = &c.points[i];
             let _ = write!(
                 md,
-                " {} | {} | {:.2} |",
+                " {} | {} | {} | {:.2} |",
                 spread(&p.t_ms),
                 number(p.presort_ms.median),
+                spread(&p.after_sort_ms),
                 p.p
             );
         }

@@ -7,7 +7,7 @@ use super::Context;
 use crate::bench::paper::{PaperScene, TABLE_1};
 use crate::bench::{
     self, charts, cores, measure_builds, measure_rays, measured, table, BuildRow, LevelCurve,
-    LevelPoint, Machine, RayRow, RaySettings, Results, SceneResult, Settings,
+    LevelPoint, Machine, RaySettings, Results, SceneResult, Settings,
 };
 use crate::input::{self, Loaded, MeshArg};
 use crate::options::{algorithm_name, AlgorithmArg, Builder};
@@ -266,7 +266,7 @@ fn level_runs(settings: &Settings) -> Vec<(&'static str, usize)> {
         .collect()
 }
 
-/// Builds (warm-up included) and renders the whole run will do, for the progress bar.
+/// Builds and ray measurements (warm-ups included) of the whole run, for the progress bar.
 fn total_steps(scenes: &[Scene], settings: &Settings) -> u64 {
     let per_measurement = 1 + settings.repeat as u64;
     let mut total = 0;
@@ -328,23 +328,24 @@ fn measure_scene(
                 threads: Some(threads),
                 ..settings.build_options
             })?;
-            let (total, presort, build) = measure_builds(&builder, mesh, settings.repeat, step)?;
+            let (times, build) = measure_builds(&builder, mesh, settings.repeat, step)?;
             builds.push(BuildRow {
                 algorithm: name,
                 threads,
                 skipped: None,
-                measured: Some(measured(&build, &builder.options, (total, presort))),
+                measured: Some(measured(&build, &builder.options, times)),
             });
             last_tree = Some(build.tree);
         }
         if let Some(tree) = last_tree {
             bar.set_message(format!("{label}: {name}, rays"));
-            let (primary, ao) = measure_rays(&ray_pool, &tree, &settings.rays);
-            rays.push(RayRow {
-                algorithm: name,
-                primary,
-                ao,
-            });
+            rays.push(measure_rays(
+                &ray_pool,
+                &tree,
+                &settings.rays,
+                settings.repeat,
+                name,
+            ));
             step();
         }
     }
@@ -378,18 +379,18 @@ fn measure_levels(
             };
             options.cost.max_depth = Some(level);
             let builder = Builder::new(options)?;
-            let (t, presort, _) =
-                measure_builds(&builder, &scene.loaded.mesh, settings.repeat, step)?;
+            let (times, _) = measure_builds(&builder, &scene.loaded.mesh, settings.repeat, step)?;
             points.push(LevelPoint {
                 level,
-                t_ms: t,
-                presort_ms: presort,
+                t_ms: times.total,
+                presort_ms: times.presort,
+                after_sort_ms: times.after_sort,
                 p: 0.0,
             });
         }
-        let base = points[0].t_ms.median - points[0].presort_ms.median;
+        let base = points[0].after_sort_ms.median;
         for p in &mut points {
-            p.p = (p.t_ms.median - p.presort_ms.median) / base;
+            p.p = p.after_sort_ms.median / base;
         }
         curves.push(LevelCurve {
             scene: scene.label(),
