@@ -34,6 +34,15 @@ macro_rules! draw {
     };
 }
 
+/// How Fig. 2 draws a builder, as its legend says.
+fn builder_style(algorithm: &str) -> &'static str {
+    match algorithm {
+        "level" => "level (solid, circles)",
+        "median" => "median (dashed, triangles)",
+        _ => "naive (dotted, crosses)",
+    }
+}
+
 fn colour(i: usize) -> RGBColor {
     const COLOURS: [RGBColor; 8] = [
         RGBColor(31, 119, 180),
@@ -261,8 +270,9 @@ pub fn fig2(path: &Path, results: &Results) -> Result<()> {
     let base = s.threads[0];
     let max_threads = *s.threads.last().unwrap_or(&1) as f64;
     let cores = results.machine.cores as f64;
+    // (scene index, builder, points): colour by scene, line and marker by builder.
     let mut series = Vec::new();
-    for scene in &results.scenes {
+    for (i, scene) in results.scenes.iter().enumerate() {
         for &a in s.algorithms.iter().filter(|&&a| a != "sweep") {
             let points: Vec<(f64, f64)> = s
                 .threads
@@ -270,13 +280,13 @@ pub fn fig2(path: &Path, results: &Results) -> Result<()> {
                 .filter_map(|&t| speedup(scene, a, base, t).map(|x| (t as f64, x)))
                 .collect();
             if !points.is_empty() {
-                series.push((format!("{}: {a}", scene.label), points));
+                series.push((i, scene.label.as_str(), a, points));
             }
         }
     }
     let top = series
         .iter()
-        .flat_map(|(_, p)| p.iter().map(|&(_, y)| y))
+        .flat_map(|(_, _, _, p)| p.iter().map(|&(_, y)| y))
         .fold(max_threads / base as f64, f64::max)
         * 1.1;
 
@@ -346,18 +356,40 @@ pub fn fig2(path: &Path, results: &Results) -> Result<()> {
             RGBColor(160, 160, 160).stroke_width(2),
         )
     });
-    for (k, (name, points)) in series.into_iter().enumerate() {
-        let c = colour(k);
-        draw!(
-            path,
-            chart.draw_series(LineSeries::new(points.clone(), c.stroke_width(3)))
-        )
-        .label(name)
-        .legend(move |(x, y)| PathElement::new([(x, y), (x + 24, y)], c.stroke_width(3)));
-        draw!(
-            path,
-            chart.draw_series(points.iter().map(|&p| Circle::new(p, 5, c.filled())))
-        );
+    for (i, scene, algorithm, points) in series {
+        let c = colour(i);
+        let (line, marker) = (c.stroke_width(3), c.filled());
+        let label = format!("{scene}: {}", builder_style(algorithm));
+        let anno = match algorithm {
+            "level" => draw!(
+                path,
+                chart.draw_series(LineSeries::new(points.clone(), line))
+            ),
+            "median" => draw!(
+                path,
+                chart.draw_series(DashedLineSeries::new(points.clone(), 14, 8, line))
+            ),
+            _ => draw!(
+                path,
+                chart.draw_series(DashedLineSeries::new(points.clone(), 4, 6, line))
+            ),
+        };
+        anno.label(label)
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 24, y)], line));
+        match algorithm {
+            "level" => draw!(
+                path,
+                chart.draw_series(points.iter().map(|&p| Circle::new(p, 6, marker)))
+            ),
+            "median" => draw!(
+                path,
+                chart.draw_series(points.iter().map(|&p| TriangleMarker::new(p, 7, marker)))
+            ),
+            _ => draw!(
+                path,
+                chart.draw_series(points.iter().map(|&p| Cross::new(p, 6, line)))
+            ),
+        };
     }
     draw!(
         path,
