@@ -99,7 +99,8 @@ pub fn markdown(results: &Results) -> String {
         if let Some(p) = &scene.paper {
             let _ = write!(md, "| {} | {} | paper |", p.name, p.triangles);
             for (a, _) in COLUMNS {
-                let _ = write!(md, " {} |", number(p.ms(a).unwrap_or(f64::NAN)));
+                // As the paper prints them: whole milliseconds.
+                let _ = write!(md, " {:.0} |", p.ms(a).unwrap_or(f64::NAN));
             }
             let _ = writeln!(
                 md,
