@@ -1,5 +1,6 @@
 //! The `sahkd` command: build, inspect and trace SAH kd-trees.
 
+mod bench;
 mod cmd;
 mod format;
 mod input;

@@ -104,14 +104,7 @@ impl BuilderArgs {
 
     /// The options and a thread pool of the requested size, for building and tracing alike.
     pub fn builder(&self) -> Result<Builder> {
-        let pool = rayon::ThreadPoolBuilder::new()
-            // 0 asks rayon for its default: every core, or RAYON_NUM_THREADS.
-            .num_threads(self.threads.unwrap_or(0))
-            .build()
-            .context("cannot start the worker threads")?;
-        let mut options = self.build_options();
-        options.threads = Some(pool.current_num_threads());
-        Ok(Builder { options, pool })
+        Builder::new(self.build_options())
     }
 }
 
@@ -123,6 +116,17 @@ pub struct Builder {
 }
 
 impl Builder {
+    /// A pool of `options.threads` workers (`None`: every core, or RAYON_NUM_THREADS).
+    pub fn new(mut options: BuildOptions) -> Result<Builder> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            // 0 asks rayon for its default.
+            .num_threads(options.threads.unwrap_or(0))
+            .build()
+            .context("cannot start the worker threads")?;
+        options.threads = Some(pool.current_num_threads());
+        Ok(Builder { options, pool })
+    }
+
     pub fn threads(&self) -> usize {
         self.pool.current_num_threads()
     }

@@ -1,6 +1,7 @@
 //! One module per subcommand. To add one: write `cmd/NAME.rs` with an `Args` struct and a
 //! `run(args, &Context)`, then add a variant to [`Command`] and an arm to [`Command::run`].
 
+pub mod bench;
 pub mod build;
 pub mod info;
 pub mod render;
@@ -24,6 +25,9 @@ pub enum Command {
     Trace(trace::Args),
     /// Build the kd-tree of a mesh, render a picture through it and report the ray throughput
     Render(render::Args),
+    /// Reproduce the paper's experiments: Table 1, Fig. 1 and Fig. 2, with tree quality and
+    /// ray throughput, written to a folder as JSON, Markdown and PNG charts
+    Bench(bench::Args),
     /// Describe a mesh: counts, bounds, degenerate triangles, unused vertices
     Info(info::Args),
 }
@@ -35,6 +39,7 @@ impl Command {
             Command::Trace(args) => trace::run(args, context),
             Command::Info(args) => info::run(args, context),
             Command::Render(args) => render::run(args, context),
+            Command::Bench(args) => bench::run(args, context),
         }
     }
 }
