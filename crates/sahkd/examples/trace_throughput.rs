@@ -182,6 +182,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .flat_map(|y| (0..n).map(move |x| (x, y)))
         .map(|(x, y)| camera.primary_ray(n, n, x as f32 + 0.5, y as f32 + 0.5))
         .collect();
+    // The first query makes the tree's trace layout; timed on its own.
+    let start = Instant::now();
+    std::hint::black_box(tree.intersect(&primary[0]));
+    let layout_seconds = start.elapsed().as_secs_f64();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads)
         .build()?;
@@ -213,10 +217,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     });
 
     println!(
-        "{}: {} triangles, {} nodes, built in {build_seconds:.2} s; camera {}, {n}x{n}, {} thread(s), {} repeats",
+        "{}: {} triangles, {} nodes, built in {build_seconds:.2} s, trace layout in {:.3} s; camera {}, {n}x{n}, {} thread(s), {} repeats",
         args.mesh,
         tree.triangles().len(),
         tree.nodes().len(),
+        layout_seconds,
         args.camera,
         args.threads,
         args.repeat
