@@ -3,7 +3,10 @@
 //! ```text
 //! cargo run --release -p sahkd --example trace_throughput -- MESH [--camera front|auto]
 //!     [--threads N] [--size 1024] [--repeat 7] [--dump DIR]
+//!     [--traversal-cost X] [--empty-bonus X]
 //! ```
+//! The tree is built with the default options, or the cost model's traversal cost and
+//! empty-space bonus given.
 //! Primary rays: one per pixel centre of a size x size picture. `front` is the fixed benchmark
 //! camera (bounding-box centre + (0, 0, 2 x diagonal) looking at the centre, up +y, 45 degree
 //! vertical field of view; most rays miss), `auto` the camera `sahkd render` picks (the mesh
@@ -29,6 +32,7 @@ struct Args {
     size: u32,
     repeat: usize,
     dump: Option<String>,
+    options: BuildOptions,
 }
 
 fn parse_args() -> Result<Args, String> {
@@ -39,6 +43,7 @@ fn parse_args() -> Result<Args, String> {
         size: 1024,
         repeat: 7,
         dump: None,
+        options: BuildOptions::default(),
     };
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
@@ -61,12 +66,22 @@ fn parse_args() -> Result<Args, String> {
                     .map_err(|e| format!("--repeat: {e}"))?
             }
             "--dump" => args.dump = Some(value("--dump")?),
+            "--traversal-cost" => {
+                args.options.cost.traversal = value("--traversal-cost")?
+                    .parse()
+                    .map_err(|e| format!("--traversal-cost: {e}"))?
+            }
+            "--empty-bonus" => {
+                args.options.cost.empty_bonus = value("--empty-bonus")?
+                    .parse()
+                    .map_err(|e| format!("--empty-bonus: {e}"))?
+            }
             _ if a.starts_with("--") => return Err(format!("unknown option {a}")),
             _ => args.mesh = a,
         }
     }
     if args.mesh.is_empty() {
-        return Err("usage: trace_throughput MESH [--camera front|auto] [--threads N] [--size 1024] [--repeat 7] [--dump DIR]".into());
+        return Err("usage: trace_throughput MESH [--camera front|auto] [--threads N] [--size 1024] [--repeat 7] [--dump DIR] [--traversal-cost X] [--empty-bonus X]".into());
     }
     if args.threads == 0 || args.repeat == 0 || args.size == 0 {
         return Err("--threads, --repeat and --size must be at least 1".into());
@@ -170,7 +185,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = parse_args()?;
     let mesh = Mesh::load(&args.mesh)?;
     let start = Instant::now();
-    let tree = sahkd::build(&mesh, &BuildOptions::default())?.tree;
+    let tree = sahkd::build(&mesh, &args.options)?.tree;
     let build_seconds = start.elapsed().as_secs_f64();
     let camera = match args.camera.as_str() {
         "front" => Camera::front(tree.bounds()),
