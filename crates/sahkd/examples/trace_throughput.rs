@@ -232,10 +232,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     });
 
     println!(
-        "{}: {} triangles, {} nodes, built in {build_seconds:.2} s, trace layout in {:.3} s; camera {}, {n}x{n}, {} thread(s), {} repeats",
+        "{}: {} triangles, {} nodes, {} references, built in {build_seconds:.2} s, trace layout ({:.0} MB) in {:.3} s; camera {}, {n}x{n}, {} thread(s), {} repeats",
         args.mesh,
         tree.triangles().len(),
         tree.nodes().len(),
+        tree.refs().len(),
+        // 8-byte nodes and a 40-byte record per reference.
+        (8 * tree.nodes().len() + 40 * tree.refs().len()) as f64 / 1e6,
         layout_seconds,
         args.camera,
         args.threads,
