@@ -64,3 +64,57 @@ impl TraceLayout {
         &self.triangles[first..first + node.count() as usize]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{build_triangles, BuildOptions, Vec3};
+
+    /// The layout holds the tree's nodes and leaves, renumbered: walking both from the root
+    /// side by side meets the same planes and the same triangles, and every node of the layout
+    /// is reached exactly once.
+    #[test]
+    fn layout_is_the_tree_renumbered() {
+        let tris: Vec<Triangle> = (0..400)
+            .map(|i| {
+                let (x, y, z) = ((i * 37 % 101) as f32, (i * 53 % 89) as f32, (i % 7) as f32);
+                [
+                    Vec3::new(x, y, z),
+                    Vec3::new(x + 3.0, y, z + 1.0),
+                    Vec3::new(x, y + 2.0, z + 2.0),
+                ]
+            })
+            .collect();
+        let tree = build_triangles(tris, &BuildOptions::default())
+            .unwrap()
+            .tree;
+        let layout = TraceLayout::new(&tree);
+        assert!(tree.nodes().len() > 50, "a tree worth renumbering");
+        let mut reached = vec![0u32; layout.nodes.len()];
+        let mut stack = vec![(0u32, 0u32)];
+        while let Some((a, b)) = stack.pop() {
+            reached[b as usize] += 1;
+            let (old, new) = (&tree.nodes()[a as usize], &layout.nodes[b as usize]);
+            assert_eq!(old.is_leaf(), new.is_leaf());
+            if old.is_leaf() {
+                let want: Vec<(u32, Triangle)> = tree
+                    .leaf_refs(old)
+                    .iter()
+                    .map(|&p| (p, tree.triangles()[p as usize]))
+                    .collect();
+                let got: Vec<(u32, Triangle)> = layout
+                    .leaf(new)
+                    .iter()
+                    .map(|r| (r.prim, r.corners))
+                    .collect();
+                assert_eq!(got, want);
+            } else {
+                assert_eq!((old.axis(), old.split()), (new.axis(), new.split()));
+                stack.push((old.left(), new.left()));
+                stack.push((old.left() + 1, new.left() + 1));
+            }
+        }
+        assert!(reached.iter().all(|&n| n == 1), "every node reached once");
+        assert_eq!(layout.triangles.len(), tree.refs().len());
+    }
+}
