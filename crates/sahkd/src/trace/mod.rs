@@ -3,13 +3,18 @@
 //! The traversal is the classic stack-based front-to-back kd-tree walk. A ray enters each
 //! node over a parameter interval `[t0, t1]`; an interior node's plane cuts that interval at
 //! `t_plane`, and the child on the ray's incoming side is visited first. Rays parallel to a
-//! split plane are routed by their origin (both children when the origin lies in the plane),
-//! so zero direction components never produce NaNs. Leaves test their triangles against the
-//! whole remaining ray `[t_min, best]`, and pending nodes that start beyond the best hit are
-//! dropped.
+//! split plane are routed by their origin: `t_plane` is then +-infinity, or NaN when the
+//! origin lies in the plane, which sends the ray to both children. Leaves test their
+//! triangles against the whole remaining ray `[t_min, best]`, and pending nodes that start
+//! beyond the best hit are dropped. One walk ([`KdTree::for_each_hit`] and the private `walk`)
+//! serves closest hit, any hit and all hits; it runs over the tree's [`layout`] copy, made on
+//! the first query: nodes depth first, leaves' triangles stored in leaf order.
 
 pub mod brute;
+mod layout;
 mod triangle;
+
+pub(crate) use layout::TraceLayout;
 
 pub use triangle::{ShearedRay, TriangleHit};
 
@@ -17,6 +22,7 @@ use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::Vec3;
 use crate::tree::KdTree;
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 
 /// A ray `origin + t * direction` for `t` in `[t_min, t_max]`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -111,15 +117,8 @@ impl std::ops::AddAssign for TraceStats {
     }
 }
 
-/// What a query wants from a leaf: the closest hit, or any hit at all.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Query {
-    Closest,
-    Any,
-}
-
 /// Pending far child: node index and the ray interval inside it.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct Pending {
     node: u32,
     t0: f32,
@@ -127,6 +126,7 @@ struct Pending {
 }
 
 /// Slab test against the tree's box; a zero direction component checks the origin instead.
+#[inline(always)]
 fn clip_to_box(tree: &KdTree, ray: &Ray, inv: &Vec3) -> Option<(f32, f32)> {
     let b = tree.bounds;
     let (mut t0, mut t1) = (ray.t_min, ray.t_max);
@@ -151,22 +151,33 @@ fn clip_to_box(tree: &KdTree, ray: &Ray, inv: &Vec3) -> Option<(f32, f32)> {
 impl KdTree {
     /// The closest hit in `[ray.t_min, ray.t_max]`.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.traverse(ray, Query::Closest, &mut ())
+        self.closest(ray, &mut ())
     }
 
     /// True when anything is hit in `[ray.t_min, ray.t_max]`; stops at the first hit found.
     pub fn occluded(&self, ray: &Ray) -> bool {
-        self.traverse(ray, Query::Any, &mut ()).is_some()
+        self.any(ray, &mut ())
     }
 
     /// [`intersect`](Self::intersect) that also counts nodes visited and triangles tested.
     pub fn intersect_counted(&self, ray: &Ray, counters: &mut impl TraceCounters) -> Option<Hit> {
-        self.traverse(ray, Query::Closest, counters)
+        self.closest(ray, counters)
     }
 
     /// [`occluded`](Self::occluded) that also counts nodes visited and triangles tested.
     pub fn occluded_counted(&self, ray: &Ray, counters: &mut impl TraceCounters) -> bool {
-        self.traverse(ray, Query::Any, counters).is_some()
+        self.any(ray, counters)
+    }
+
+    /// Calls `f` with every hit of a triangle in `[ray.t_min, ray.t_max]`, walking every leaf
+    /// the ray passes through, front to back. A triangle referenced by several of those leaves
+    /// is reported once per leaf, each time with the same hit; the order of the calls is not
+    /// sorted by distance.
+    pub fn for_each_hit(&self, ray: &Ray, mut f: impl FnMut(Hit)) {
+        self.walk(ray, &mut (), |hit, _| {
+            f(hit);
+            false
+        });
     }
 
     /// Closest hits of many rays on every core of the current rayon pool. The result of each
@@ -186,103 +197,121 @@ impl KdTree {
             .collect()
     }
 
-    fn traverse(&self, ray: &Ray, query: Query, counters: &mut impl TraceCounters) -> Option<Hit> {
+    #[inline(always)]
+    fn closest(&self, ray: &Ray, counters: &mut impl TraceCounters) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        self.walk(ray, counters, |hit, limit| {
+            if hit.better_than(&best) {
+                *limit = hit.t;
+                best = Some(hit);
+            }
+            false
+        });
+        best
+    }
+
+    #[inline(always)]
+    fn any(&self, ray: &Ray, counters: &mut impl TraceCounters) -> bool {
+        let mut found = false;
+        self.walk(ray, counters, |_, _| {
+            found = true;
+            true
+        });
+        found
+    }
+
+    /// The front-to-back walk shared by every query. `visit(hit, limit)` sees each triangle
+    /// hit with `t` in `[ray.t_min, limit]`; it may lower `limit` (nodes that start beyond it
+    /// are skipped and triangles are tested against it) and returns true to end the walk.
+    #[inline(always)]
+    fn walk(
+        &self,
+        ray: &Ray,
+        counters: &mut impl TraceCounters,
+        mut visit: impl FnMut(Hit, &mut f32) -> bool,
+    ) {
         if !ray.is_valid() || self.triangles.is_empty() {
-            return None;
+            return;
         }
+        let layout = self.trace_layout();
         let d = ray.direction;
         let inv = Vec3([1.0 / d[0], 1.0 / d[1], 1.0 / d[2]]);
-        let (mut t0, mut t1) = clip_to_box(self, ray, &inv)?;
-        let sheared = ShearedRay::new(ray);
-        let mut stack = [Pending::default(); MAX_DEPTH_CAP as usize + 4];
+        let Some((mut t0, mut t1)) = clip_to_box(self, ray, &inv) else {
+            return;
+        };
+        // The child on the ray's incoming side of a plane is "near". With a zero direction
+        // component `inv` is infinite and the plane distance below is +-inf, which routes the
+        // ray by its origin, or NaN when the origin lies in the plane.
+        let near_is_right = [0, 1, 2].map(|a| d[a].is_sign_negative() as u32);
+        let mut sheared: Option<ShearedRay> = None;
+        // Only entries below `top` are read, and each was written first.
+        let mut stack = [MaybeUninit::<Pending>::uninit(); MAX_DEPTH_CAP as usize + 4];
         let mut top = 0usize;
         let mut node_index = 0u32;
-        let mut best: Option<Hit> = None;
-        let mut best_t = ray.t_max;
+        let mut limit = ray.t_max;
         loop {
-            // A node that starts beyond the best hit is skipped, not a reason to stop: a ray
+            // A node that starts beyond the limit is skipped, not a reason to stop: a ray
             // lying in a split plane pushes a sibling over its whole interval, so the stack
             // is not always ordered by entry distance.
-            if t0 > best_t {
-                if top == 0 {
-                    break;
-                }
-                top -= 1;
-                let p = stack[top];
-                (node_index, t0, t1) = (p.node, p.t0, p.t1);
-                continue;
-            }
-            counters.node();
-            let node = &self.nodes[node_index as usize];
-            if !node.is_leaf() {
-                let axis = node.axis();
-                let split = node.split();
-                let left = node.left();
-                let o = ray.origin[axis];
-                if inv[axis].is_finite() {
-                    let t_plane = (split - o) * inv[axis];
-                    // The child the ray comes from is "near", the one it goes into "far".
-                    let (near, far) = if d[axis] > 0.0 {
-                        (left, left + 1)
-                    } else {
-                        (left + 1, left)
-                    };
+            if t0 <= limit {
+                counters.node();
+                let node = &layout.nodes[node_index as usize];
+                if !node.is_leaf() {
+                    let axis = node.axis();
+                    let left = node.left();
+                    let t_plane = (node.split() - ray.origin[axis]) * inv[axis];
+                    let near = left + near_is_right[axis];
+                    let far = left + 1 - near_is_right[axis];
                     if t_plane > t1 {
                         node_index = near;
                     } else if t_plane < t0 {
                         node_index = far;
                     } else {
-                        stack[top] = Pending {
+                        // Both sides; a ray running inside the plane (NaN) keeps its interval
+                        // for both, since either may hold what it touches.
+                        let nan = t_plane.is_nan();
+                        stack[top] = MaybeUninit::new(Pending {
                             node: far,
-                            t0: t_plane,
+                            t0: if nan { t0 } else { t_plane },
                             t1,
-                        };
+                        });
                         top += 1;
                         node_index = near;
-                        t1 = t_plane;
+                        t1 = if nan { t1 } else { t_plane };
                     }
-                } else if o < split {
-                    node_index = left;
-                } else if o > split {
-                    node_index = left + 1;
-                } else {
-                    // Running inside the plane: both sides may hold what it touches.
-                    stack[top] = Pending {
-                        node: left + 1,
-                        t0,
-                        t1,
-                    };
-                    top += 1;
-                    node_index = left;
+                    continue;
                 }
-                continue;
-            }
-            for &prim in self.leaf_refs(node) {
-                counters.triangle();
-                let tri = &self.triangles[prim as usize];
-                if let Some(h) = sheared.intersect(tri, ray.t_min, best_t) {
-                    let hit = Hit {
-                        t: h.t,
-                        prim,
-                        u: h.u,
-                        v: h.v,
-                    };
-                    if query == Query::Any {
-                        return Some(hit);
-                    }
-                    if hit.better_than(&best) {
-                        best_t = hit.t;
-                        best = Some(hit);
+                let records = layout.leaf(node);
+                if !records.is_empty() {
+                    let sheared = sheared.get_or_insert_with(|| ShearedRay::new(ray));
+                    for record in records {
+                        counters.triangle();
+                        if let Some(h) = sheared.intersect(&record.corners, ray.t_min, limit) {
+                            let hit = Hit {
+                                t: h.t,
+                                prim: record.prim,
+                                u: h.u,
+                                v: h.v,
+                            };
+                            if visit(hit, &mut limit) {
+                                return;
+                            }
+                        }
                     }
                 }
             }
             if top == 0 {
-                break;
+                return;
             }
             top -= 1;
-            let p = stack[top];
+            // SAFETY: entries below `top` were all written by a push.
+            let p = unsafe { stack[top].assume_init() };
             (node_index, t0, t1) = (p.node, p.t0, p.t1);
         }
-        best
+    }
+
+    /// The traversal layout of this tree, made on first use.
+    fn trace_layout(&self) -> &TraceLayout {
+        self.layout.get_or_init(|| TraceLayout::new(self))
     }
 }

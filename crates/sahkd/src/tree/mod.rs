@@ -17,6 +17,8 @@ mod validate;
 pub use stats::TreeStats;
 
 use crate::geometry::{Aabb, Triangle};
+use crate::trace::TraceLayout;
+use std::sync::OnceLock;
 
 const LEAF: u32 = 3;
 
@@ -106,6 +108,8 @@ pub struct KdTree {
     pub(crate) refs: Vec<u32>,
     pub(crate) triangles: Vec<Triangle>,
     pub(crate) bounds: Aabb,
+    /// The copy of the tree ray queries walk, made on the first query.
+    pub(crate) layout: OnceLock<TraceLayout>,
 }
 
 impl KdTree {
@@ -130,6 +134,7 @@ impl KdTree {
             refs,
             triangles,
             bounds,
+            layout: OnceLock::new(),
         }
     }
 

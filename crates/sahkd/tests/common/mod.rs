@@ -174,8 +174,55 @@ pub fn check_oracle(tree: &KdTree, rays: &[Ray]) -> Result<(), String> {
                 "ray {i} {ray:?}: tree says occluded={got}, brute force {want}"
             ));
         }
+        let got = every_hit(tree, ray);
+        let want = brute_every_hit(tris, ray);
+        if got != want {
+            return Err(format!(
+                "ray {i} {ray:?}: for_each_hit finds {} hits, brute force {}: {got:?} vs {want:?}",
+                got.len(),
+                want.len()
+            ));
+        }
     }
     Ok(())
+}
+
+/// Every hit `KdTree::for_each_hit` reports, one per triangle, sorted by triangle.
+fn every_hit(tree: &KdTree, ray: &Ray) -> Vec<sahkd::Hit> {
+    let mut hits = Vec::new();
+    tree.for_each_hit(ray, |h| hits.push(h));
+    hits.sort_by_key(|h| h.prim);
+    hits.dedup();
+    // A triangle in several leaves must be reported with the same hit each time.
+    let mut prims: Vec<u32> = hits.iter().map(|h| h.prim).collect();
+    prims.dedup();
+    assert_eq!(
+        prims.len(),
+        hits.len(),
+        "one triangle reported with different hits"
+    );
+    hits
+}
+
+/// Every triangle the ray hits in its range, by testing them all, sorted by triangle.
+fn brute_every_hit(tris: &[sahkd::Triangle], ray: &Ray) -> Vec<sahkd::Hit> {
+    if !ray.is_valid() {
+        return Vec::new();
+    }
+    let sheared = sahkd::trace::ShearedRay::new(ray);
+    tris.iter()
+        .enumerate()
+        .filter_map(|(i, t)| {
+            sheared
+                .intersect(t, ray.t_min, ray.t_max)
+                .map(|h| sahkd::Hit {
+                    t: h.t,
+                    prim: i as u32,
+                    u: h.u,
+                    v: h.v,
+                })
+        })
+        .collect()
 }
 
 /// Every builder configuration the project offers.
