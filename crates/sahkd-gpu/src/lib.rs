@@ -1,0 +1,23 @@
+//! GPU compute for sahkd: the level builder's data-parallel phases as portable WGSL kernels
+//! on wgpu (Vulkan, Metal, DX12), tested on Mesa's software Vulkan driver (lavapipe).
+//!
+//! - [`Gpu`]: one adapter and device, chosen once; a missing adapter is an error that names
+//!   the backends tried, and every validation error of the device is turned into an `Err`.
+//! - [`scan`]: multi-pass exclusive prefix sums (no single-pass look-back, which may hang where
+//!   workgroups are not guaranteed to run together).
+//! - [`price`]: the SAH cost of every candidate plane, bit for bit the f32 operations of
+//!   [`sahkd::CostModel::split_cost`].
+//! - [`segmin`]: each node's best candidate (cheapest, then smallest position, then lowest
+//!   axis), by three rounds of atomic minima.
+//! - [`partition`]: the stable split of every node's references into its two children
+//!   (flags, scan, scatter).
+
+mod device;
+mod kernel;
+pub mod partition;
+pub mod price;
+pub mod scan;
+pub mod segmin;
+
+pub use device::{Gpu, GpuError};
+pub use kernel::{Arg, Kernel};
