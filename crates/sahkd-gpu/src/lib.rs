@@ -11,9 +11,11 @@
 //!   axis), by three rounds of atomic minima.
 //! - [`partition`]: the stable split of every node's references into its two children
 //!   (flags, scan, scatter).
+//! - [`level`]: the level builder itself (clip off): the same tree as the CPU's.
 
 mod device;
 mod kernel;
+pub mod level;
 pub mod partition;
 pub mod price;
 pub mod scan;
@@ -21,3 +23,4 @@ pub mod segmin;
 
 pub use device::{Gpu, GpuError};
 pub use kernel::{Arg, Kernel};
+pub use level::{build, check_options, GpuBuild, GpuReport};
