@@ -2,6 +2,7 @@
 
 mod cmd;
 mod format;
+mod gpu;
 mod input;
 mod options;
 mod progress;

@@ -20,6 +20,11 @@ fn default_cost() -> CostModel {
 #[derive(Args, Clone, Debug)]
 #[command(next_help_heading = "Builder options")]
 pub struct BuilderArgs {
+    /// Where the level builder runs: the CPU, or a GPU through wgpu (Vulkan, Metal, DX12;
+    /// level builder with --clip off only)
+    #[arg(long, value_enum, value_name = "DEVICE", default_value_t = DeviceArg::Cpu)]
+    pub device: DeviceArg,
+
     /// Tree builder
     #[arg(long, value_enum, value_name = "NAME",
           default_value_t = default_options().algorithm.into())]
@@ -111,7 +116,11 @@ impl BuilderArgs {
             .context("cannot start the worker threads")?;
         let mut options = self.build_options();
         options.threads = Some(pool.current_num_threads());
-        Ok(Builder { options, pool })
+        Ok(Builder {
+            options,
+            pool,
+            device: self.device,
+        })
     }
 }
 
@@ -120,6 +129,7 @@ pub struct Builder {
     /// The options, with `threads` the number of threads actually used.
     pub options: BuildOptions,
     pool: rayon::ThreadPool,
+    pub device: DeviceArg,
 }
 
 impl Builder {
@@ -142,6 +152,15 @@ impl Builder {
         self.install(|| sahkd::build(mesh, &options))
             .context("cannot build the tree")
     }
+}
+
+/// Where a tree is built.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum DeviceArg {
+    /// The CPU, on the worker threads
+    Cpu,
+    /// The first GPU adapter wgpu finds (high performance first)
+    Gpu,
 }
 
 /// `sahkd::Algorithm` as a command-line value.
