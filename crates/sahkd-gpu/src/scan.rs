@@ -1,6 +1,9 @@
 //! Exclusive prefix sums over u32 buffers, in several passes (see `shaders/scan.wgsl`).
 
 use crate::kernel::{Arg, Kernel, GROUP};
+
+/// Elements per workgroup (`BLOCK` in the shader: 4 per thread).
+const BLOCK: usize = 4 * GROUP as usize;
 use crate::{Gpu, GpuError};
 
 #[repr(C)]
@@ -38,18 +41,19 @@ impl Scan {
         if n == 0 {
             return Ok(());
         }
-        let blocks = n.div_ceil(GROUP as usize);
+        let blocks = n.div_ceil(BLOCK);
+        let threads = (blocks * GROUP as usize) as u64;
         let sums = gpu.storage("scan sums", blocks)?;
         let params = gpu.uniform(&Params {
             n: n as u32,
             pad: [0; 3],
         });
         self.blocks
-            .dispatch(gpu, encoder, &[&params, data, &sums], n as u64);
+            .dispatch(gpu, encoder, &[&params, data, &sums], threads);
         if blocks > 1 {
             self.record(gpu, encoder, &sums, blocks)?;
             self.add
-                .dispatch(gpu, encoder, &[&params, data, &sums], n as u64);
+                .dispatch(gpu, encoder, &[&params, data, &sums], threads);
         }
         Ok(())
     }

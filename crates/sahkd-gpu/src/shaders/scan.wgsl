@@ -1,5 +1,6 @@
-// Multi-pass exclusive prefix sum of u32 (wrapping): every workgroup scans its block of 256 in
-// workgroup memory and writes the block's total; the totals are scanned the same way (by the
+// Multi-pass exclusive prefix sum of u32 (wrapping): every workgroup scans its block of 1024
+// (4 consecutive elements per thread, summed in registers, then the 256 thread totals in
+// workgroup memory) and writes the block's total; the totals are scanned the same way (by the
 // host, recursively) and added back. No workgroup ever waits on another.
 
 struct Params { n: u32, pad0: u32, pad1: u32, pad2: u32 }
@@ -7,6 +8,9 @@ struct Params { n: u32, pad0: u32, pad1: u32, pad2: u32 }
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> data: array<u32>;
 @group(0) @binding(2) var<storage, read_write> sums: array<u32>;
+
+const PER_THREAD: u32 = 4u;
+const BLOCK: u32 = 1024u;
 
 var<workgroup> tile: array<u32, 256>;
 
@@ -17,27 +21,34 @@ fn scan_blocks(
     @builtin(local_invocation_index) lid: u32,
 ) {
     let block = wid.y * nwg.x + wid.x;
-    let i = block * 256u + lid;
-    var x = 0u;
-    if (i < params.n) {
-        x = data[i];
+    let first = block * BLOCK + lid * PER_THREAD;
+    var before: array<u32, 4>;
+    var total = 0u;
+    for (var j = 0u; j < PER_THREAD; j = j + 1u) {
+        before[j] = total;
+        if (first + j < params.n) {
+            total = total + data[first + j];
+        }
     }
-    tile[lid] = x;
+    tile[lid] = total;
     workgroupBarrier();
-    // Hillis-Steele: after the step of distance d, tile[j] sums the 2d inputs ending at j.
+    // Hillis-Steele: after the step of distance d, tile[t] sums the 2d thread totals ending at t.
     for (var d = 1u; d < 256u; d = d << 1u) {
-        var before = 0u;
+        var earlier = 0u;
         if (lid >= d) {
-            before = tile[lid - d];
+            earlier = tile[lid - d];
         }
         workgroupBarrier();
-        tile[lid] = tile[lid] + before;
+        tile[lid] = tile[lid] + earlier;
         workgroupBarrier();
     }
-    if (i < params.n) {
-        data[i] = tile[lid] - x;
+    let offset = tile[lid] - total;
+    for (var j = 0u; j < PER_THREAD; j = j + 1u) {
+        if (first + j < params.n) {
+            data[first + j] = offset + before[j];
+        }
     }
-    if (lid == 255u && block * 256u < params.n) {
+    if (lid == 255u && block * BLOCK < params.n) {
         sums[block] = tile[255];
     }
 }
@@ -49,8 +60,10 @@ fn add_block_sums(
     @builtin(local_invocation_index) lid: u32,
 ) {
     let block = wid.y * nwg.x + wid.x;
-    let i = block * 256u + lid;
-    if (i < params.n) {
-        data[i] = data[i] + sums[block];
+    let first = block * BLOCK + lid * PER_THREAD;
+    for (var j = 0u; j < PER_THREAD; j = j + 1u) {
+        if (first + j < params.n) {
+            data[first + j] = data[first + j] + sums[block];
+        }
     }
 }
