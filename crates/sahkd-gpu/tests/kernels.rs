@@ -367,3 +367,22 @@ fn stable_partition_matches_reference() {
         assert_eq!(got, expected, "{segments} segments");
     }
 }
+
+#[test]
+fn launches_beyond_65535_workgroups_reach_every_index() {
+    let Some(gpu) = common::gpu() else { return };
+    // 17M threads: 65 535 x 2 workgroups of 256; only candidates past the first row of
+    // workgroups (index >= 65 535 * 256) are real, so a wrong 2-D index loses them.
+    let n = 17_000_000;
+    let first_row = 65_535 * 256;
+    let mut owner = vec![u32::MAX; n];
+    let mut cost = vec![0.0f32; n];
+    let pos = vec![1.0f32; n];
+    let picks = [first_row, first_row + 1, n - 2, n - 1];
+    for (k, &i) in picks.iter().enumerate() {
+        owner[i] = k as u32;
+        cost[i] = k as f32;
+    }
+    let got = best_candidates(&gpu, &cost, &pos, &owner, picks.len()).unwrap();
+    assert_eq!(got, picks.map(|i| i as u32));
+}
