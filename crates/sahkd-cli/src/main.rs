@@ -3,6 +3,7 @@
 mod bench;
 mod cmd;
 mod format;
+mod gpu;
 mod input;
 mod options;
 mod progress;

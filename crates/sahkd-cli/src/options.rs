@@ -20,6 +20,11 @@ fn default_cost() -> CostModel {
 #[derive(Args, Clone, Debug)]
 #[command(next_help_heading = "Builder options")]
 pub struct BuilderArgs {
+    /// Where the level builder runs: the CPU, or a GPU through wgpu (Vulkan, Metal, DX12;
+    /// level builder with --clip off only)
+    #[arg(long, value_enum, value_name = "DEVICE", default_value_t = DeviceArg::Cpu)]
+    pub device: DeviceArg,
+
     /// Tree builder
     #[arg(long, value_enum, value_name = "NAME",
           default_value_t = default_options().algorithm.into())]
@@ -104,7 +109,7 @@ impl BuilderArgs {
 
     /// The options and a thread pool of the requested size, for building and tracing alike.
     pub fn builder(&self) -> Result<Builder> {
-        Builder::new(self.build_options())
+        Ok(Builder::new(self.build_options())?.on(self.device))
     }
 }
 
@@ -113,6 +118,7 @@ pub struct Builder {
     /// The options, with `threads` the number of threads actually used.
     pub options: BuildOptions,
     pool: rayon::ThreadPool,
+    pub device: DeviceArg,
 }
 
 impl Builder {
@@ -124,7 +130,16 @@ impl Builder {
             .build()
             .context("cannot start the worker threads")?;
         options.threads = Some(pool.current_num_threads());
-        Ok(Builder { options, pool })
+        Ok(Builder {
+            options,
+            pool,
+            device: DeviceArg::Cpu,
+        })
+    }
+
+    /// The same builder, running the level builder on `device`.
+    pub fn on(self, device: DeviceArg) -> Builder {
+        Builder { device, ..self }
     }
 
     pub fn threads(&self) -> usize {
@@ -146,6 +161,15 @@ impl Builder {
         self.install(|| sahkd::build(mesh, &options))
             .context("cannot build the tree")
     }
+}
+
+/// Where a tree is built.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum DeviceArg {
+    /// The CPU, on the worker threads
+    Cpu,
+    /// The first GPU adapter wgpu finds (high performance first)
+    Gpu,
 }
 
 /// `sahkd::Algorithm` as a command-line value.

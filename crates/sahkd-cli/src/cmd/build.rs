@@ -2,8 +2,11 @@
 
 use super::Context;
 use crate::format::{self, Table};
+use crate::gpu::GpuReport;
 use crate::input::{self, Loaded, MeshArg};
-use crate::options::{algorithm_name, axes_name, counting_name, switch_name, Builder, BuilderArgs};
+use crate::options::{
+    algorithm_name, axes_name, counting_name, switch_name, Builder, BuilderArgs, DeviceArg,
+};
 use crate::progress::Progress;
 use anyhow::{bail, Result};
 use sahkd::build::LevelReport;
@@ -33,6 +36,10 @@ pub struct Args {
 pub struct Report<'a> {
     source: String,
     triangles: usize,
+    /// "cpu" or "gpu".
+    device: &'static str,
+    /// With `--device gpu`: the adapter, upload, per-phase and download times, round trips.
+    gpu: Option<&'a GpuReport>,
     algorithm: &'static str,
     axes: &'static str,
     counting: &'static str,
@@ -95,6 +102,8 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
 pub struct Built {
     pub loaded: Loaded,
     pub build: sahkd::Build,
+    /// Set when the tree was built on a GPU.
+    pub gpu: Option<GpuReport>,
 }
 
 impl Built {
@@ -105,11 +114,18 @@ impl Built {
             "building {} triangles",
             format::count(loaded.mesh.triangles.len() as u64)
         ));
-        let build = builder.build(&loaded.mesh);
+        let (build, gpu) = match builder.device {
+            DeviceArg::Cpu => (builder.build(&loaded.mesh), None),
+            DeviceArg::Gpu => match crate::gpu::build(&loaded.mesh, &builder.options) {
+                Ok((build, report)) => (Ok(build), Some(report)),
+                Err(e) => (Err(e), None),
+            },
+        };
         spinner.finish_and_clear();
         Ok(Built {
             loaded,
             build: build?,
+            gpu,
         })
     }
 
@@ -121,6 +137,11 @@ impl Built {
         Report {
             source: self.loaded.source.name(),
             triangles: self.loaded.mesh.triangles.len(),
+            device: match builder.device {
+                DeviceArg::Cpu => "cpu",
+                DeviceArg::Gpu => "gpu",
+            },
+            gpu: self.gpu.as_ref(),
             algorithm: algorithm_name(options.algorithm),
             axes: axes_name(options.axes),
             counting: counting_name(options.counting),
@@ -171,8 +192,26 @@ impl Built {
                 ),
             )
             .row("load time", format::ms(self.loaded.load_ms))
-            .row("build time", format::ms(report.build_ms))
-            .row("pre-sort time", format::ms(report.presort_ms))
+            .row("build time", format::ms(report.build_ms));
+        if let Some(gpu) = &self.gpu {
+            let phases: Vec<String> = gpu
+                .phases_ms
+                .iter()
+                .map(|(name, ms)| format!("{name} {}", format::ms(*ms)))
+                .collect();
+            t.row("GPU adapter", gpu.adapter.clone())
+                .row("GPU upload", format::ms(gpu.upload_ms))
+                .row("GPU phases", phases.join(", "))
+                .row("GPU download", format::ms(gpu.download_ms))
+                .row(
+                    "host round trips",
+                    format!(
+                        "{} ({} levels, {:.0} per level)",
+                        gpu.round_trips, gpu.levels, gpu.round_trips_per_level
+                    ),
+                );
+        }
+        t.row("pre-sort time", format::ms(report.presort_ms))
             .row("SAH cost", format!("{:.3}", stats.sah_cost))
             .row("nodes", format::count(stats.nodes as u64))
             .row("interior nodes", format::count(stats.interior as u64))

@@ -1,0 +1,109 @@
+//! `--device gpu`: the same tree as `--device cpu`, the GPU report, and one clear error line
+//! for what it cannot do. Without an adapter the tests skip, saying so, unless `CI` is set.
+
+use serde_json::Value;
+use std::process::{Command, Output};
+
+fn sahkd(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_sahkd"));
+    cmd.args(args).env("XDG_RUNTIME_DIR", "/tmp");
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("sahkd runs")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// The JSON report of a build, or `None` (skip) when no adapter exists outside CI.
+fn build_json(args: &[&str]) -> Option<Value> {
+    let mut all = vec!["build", "--json", "--quiet"];
+    all.extend_from_slice(args);
+    let out = sahkd(&all, &[]);
+    if !out.status.success() && stderr(&out).contains("no GPU adapter found") {
+        assert!(std::env::var_os("CI").is_none(), "{}", stderr(&out));
+        eprintln!("skipping: {}", stderr(&out));
+        return None;
+    }
+    assert!(out.status.success(), "{args:?}: {}", stderr(&out));
+    Some(serde_json::from_slice(&out.stdout).unwrap())
+}
+
+#[test]
+fn gpu_build_gives_the_cpu_tree_and_reports_its_phases() {
+    for axes in ["longest", "all"] {
+        let common = ["spd:toys:3000", "--clip", "off", "--axes", axes];
+        let Some(gpu) = build_json(&[&common[..], &["--device", "gpu"]].concat()) else {
+            return;
+        };
+        let cpu = build_json(&[&common[..], &["--device", "cpu"]].concat()).unwrap();
+        assert_eq!(gpu["device"], "gpu");
+        assert_eq!(cpu["device"], "cpu");
+        assert!(cpu["gpu"].is_null());
+        // Same tree: every statistic of it agrees (the library tests compare node by node).
+        for key in [
+            "nodes",
+            "leaves",
+            "references",
+            "max_depth",
+            "sah_cost",
+            "empty_leaves",
+        ] {
+            assert_eq!(gpu[key], cpu[key], "{axes} axes: {key}");
+        }
+        let report = &gpu["gpu"];
+        assert!(!report["adapter"].as_str().unwrap().is_empty());
+        if let Ok(expected) = std::env::var("SAHKD_GPU_ADAPTER") {
+            assert!(report["adapter"].as_str().unwrap().contains(&expected));
+        }
+        let phases = report["phases_ms"].as_array().unwrap();
+        let names: Vec<&str> = phases.iter().map(|p| p[0].as_str().unwrap()).collect();
+        assert_eq!(
+            names,
+            [
+                "layout",
+                "candidates",
+                "counting",
+                "pricing",
+                "best split",
+                "decision",
+                "partition",
+                "output"
+            ]
+        );
+        assert!(phases.iter().all(|p| p[1].as_f64().unwrap() >= 0.0));
+        let levels = report["levels"].as_u64().unwrap();
+        assert_eq!(levels, gpu["max_depth"].as_u64().unwrap() + 1);
+        assert_eq!(report["round_trips"].as_u64().unwrap(), 2 * levels);
+    }
+}
+
+#[test]
+fn gpu_mistakes_are_one_clear_line() {
+    // Clipping is not on the GPU yet: refused, not silently different.
+    let out = sahkd(
+        &["build", "spd:toys:500", "--device", "gpu", "--clip", "on"],
+        &[],
+    );
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(
+        stderr(&out).trim(),
+        "error: --device gpu supports --clip off only for now"
+    );
+    // No adapter on the only backend allowed (Metal does not exist on Linux).
+    if cfg!(target_os = "linux") {
+        let out = sahkd(
+            &["build", "spd:toys:500", "--device", "gpu", "--clip", "off"],
+            &[("WGPU_BACKEND", "metal")],
+        );
+        assert_eq!(out.status.code(), Some(1));
+        let err = stderr(&out);
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(
+            err.starts_with("error: no GPU adapter found (backends tried: metal)"),
+            "{err}"
+        );
+    }
+}

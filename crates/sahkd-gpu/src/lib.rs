@@ -1,0 +1,38 @@
+//! GPU compute for sahkd: the level builder's data-parallel phases as portable WGSL kernels
+//! on wgpu (Vulkan, Metal, DX12), tested on Mesa's software Vulkan driver (lavapipe).
+//!
+//! - [`Gpu`]: one adapter and device, chosen once; a missing adapter is an error that names
+//!   the backends tried, and every validation error of the device is turned into an `Err`.
+//! - [`scan`]: multi-pass exclusive prefix sums (no single-pass look-back, which may hang where
+//!   workgroups are not guaranteed to run together).
+//! - [`price`]: the SAH cost of every candidate plane, bit for bit the f32 operations of
+//!   [`sahkd::CostModel::split_cost`].
+//! - [`segmin`]: each node's best candidate (cheapest, then smallest position, then lowest
+//!   axis), by three rounds of atomic minima.
+//! - [`partition`]: the stable split of every node's references into its two children
+//!   (flags, scan, scatter).
+//! - [`level`]: the level builder itself (clip off): the same tree as the CPU's.
+//!
+//! On the host stay: the one-off presort of the nine root lists before the upload (no GPU sort
+//! was written; it is 0.1 s of bunny's build, see BENCHMARKS.md), the reference-budget check
+//! (one comparison per level, on totals the host reads anyway to size the next level), and
+//! turning the downloaded node records into `Node`s. Counting is by binary searches in each
+//! node's sorted lists rather than the paper's space-tree walk or the CPU's event scan: the
+//! same L, R, P per candidate, with no per-node serial sweep.
+//!
+//! Ties: the segmented min orders by (cost, position, index), and the candidate array holds
+//! the axes in order, so it picks what the CPU picks (cost, position, lower axis); candidates
+//! equal in all three are the same plane of the same node, hence the same split. Costs differ
+//! from the CPU's only if a GPU flushes subnormal intermediates (see `shaders/price.wgsl`).
+
+mod device;
+mod kernel;
+pub mod level;
+pub mod partition;
+pub mod price;
+pub mod scan;
+pub mod segmin;
+
+pub use device::{Gpu, GpuError};
+pub use kernel::{Arg, Kernel};
+pub use level::{build, check_options, GpuBuild, GpuReport};

@@ -1,0 +1,77 @@
+//! Each node's best candidate over the level's flat candidate array (see
+//! `shaders/segmin.wgsl`): a segmented minimum keyed by (cost, position, index).
+
+use crate::kernel::{Arg, Kernel};
+use crate::{Gpu, GpuError};
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    n: u32,
+    pad: [u32; 3],
+}
+
+/// No candidate (an empty node, or an index in `best` of a node without candidates).
+pub const NONE: u32 = u32::MAX;
+
+pub struct SegMin {
+    rounds: [Kernel; 3],
+}
+
+impl SegMin {
+    pub fn new(gpu: &Gpu) -> SegMin {
+        let module = gpu.module("segmin", include_str!("shaders/segmin.wgsl"));
+        let args = [Arg::Uniform, Arg::Read, Arg::Read, Arg::Read, Arg::Write];
+        let k = |entry| Kernel::new(gpu, &module, entry, &args);
+        SegMin {
+            rounds: [k("min_cost"), k("min_pos"), k("min_index")],
+        }
+    }
+
+    /// Records the three rounds over `n` candidates (`cost` as f32 >= 0 or +inf, `pos` as
+    /// f32, `owner` the node or `u32::MAX` for a hole). `best` holds 3 words per node, filled
+    /// with `u32::MAX` beforehand; word 2 ends as the best candidate's index.
+    #[allow(clippy::too_many_arguments)]
+    pub fn record(
+        &self,
+        gpu: &Gpu,
+        encoder: &mut wgpu::CommandEncoder,
+        cost: &wgpu::Buffer,
+        pos: &wgpu::Buffer,
+        owner: &wgpu::Buffer,
+        n: usize,
+        best: &wgpu::Buffer,
+    ) {
+        let params = gpu.uniform(&Params {
+            n: n as u32,
+            pad: [0; 3],
+        });
+        for round in &self.rounds {
+            round.dispatch(gpu, encoder, &[&params, cost, pos, owner, best], n as u64);
+        }
+    }
+}
+
+/// The index of each of `nodes` nodes' best candidate ([`NONE`] for none), computed on the GPU.
+pub fn best_candidates(
+    gpu: &Gpu,
+    cost: &[f32],
+    pos: &[f32],
+    owner: &[u32],
+    nodes: usize,
+) -> Result<Vec<u32>, GpuError> {
+    let n = cost.len();
+    assert!(pos.len() == n && owner.len() == n);
+    let kernel = SegMin::new(gpu);
+    let best = gpu.upload("best", &vec![u32::MAX; 3 * nodes]);
+    let (cost, pos, owner) = (
+        gpu.upload("cost", cost),
+        gpu.upload("pos", pos),
+        gpu.upload("owner", owner),
+    );
+    let mut encoder = gpu.encoder();
+    kernel.record(gpu, &mut encoder, &cost, &pos, &owner, n, &best);
+    gpu.submit(encoder);
+    let words = gpu.download::<u32>(&best, 3 * nodes)?;
+    Ok(words.chunks(3).map(|w| w[2]).collect())
+}

@@ -1,0 +1,155 @@
+//! The GPU level builder against the CPU level builder: the same tree (same split planes, same
+//! leaf references, compared by `KdTree::first_difference`) for the same options.
+
+mod common;
+
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use sahkd::{Axes, BuildOptions, CostModel, Counting, Mesh, Triangle, Vec3};
+use sahkd_gpu::Gpu;
+use std::path::PathBuf;
+
+fn cpu_and_gpu_agree(gpu: &Gpu, name: &str, triangles: &[Triangle], options: &BuildOptions) {
+    let cpu = sahkd::build_triangles(triangles.to_vec(), options).unwrap();
+    let built = sahkd_gpu::build(gpu, triangles.to_vec(), options)
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    built
+        .tree
+        .validate()
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    if let Some(d) = cpu.tree.first_difference(&built.tree) {
+        panic!("{name} ({options:?}): GPU tree differs from the CPU's at {d}");
+    }
+    assert_eq!(
+        built.report.levels,
+        cpu.report.levels.len(),
+        "{name}: levels"
+    );
+    assert_eq!(built.report.round_trips, 2 * built.report.levels);
+    assert!(
+        cpu.tree.nodes().len() > 1 || triangles.len() <= 1,
+        "{name}: a real tree"
+    );
+}
+
+/// Random triangles on a coarse grid, a third of them flat on some axis: many equal
+/// positions, planar references and ties between candidates.
+fn grid_triangles(seed: u64, n: usize) -> Vec<Triangle> {
+    let mut rng = StdRng::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            let c: [f32; 3] = std::array::from_fn(|_| rng.random_range(0..16) as f32 - 8.0);
+            let flat = rng.random_range(0..6);
+            let corner = |rng: &mut StdRng| {
+                let mut v = c;
+                for (a, x) in v.iter_mut().enumerate() {
+                    if a != flat {
+                        *x += rng.random_range(0..4) as f32 * 0.5;
+                    }
+                }
+                Vec3(v)
+            };
+            [corner(&mut rng), corner(&mut rng), corner(&mut rng)]
+        })
+        .collect()
+}
+
+fn option_sets() -> Vec<BuildOptions> {
+    let paper = BuildOptions::paper();
+    vec![
+        paper,
+        BuildOptions {
+            axes: Axes::All,
+            ..paper
+        },
+        BuildOptions {
+            counting: Counting::SpaceTree,
+            ..paper
+        },
+        BuildOptions {
+            cost: CostModel {
+                leaf_size: 4,
+                max_depth: Some(7),
+                traversal: 3.0,
+                empty_bonus: 1.0,
+                ..CostModel::default()
+            },
+            ..paper
+        },
+        // A reference budget that runs out: whole levels become leaves.
+        BuildOptions {
+            axes: Axes::All,
+            cost: CostModel {
+                max_duplication: 1.0,
+                ..CostModel::default()
+            },
+            ..paper
+        },
+    ]
+}
+
+#[test]
+fn generated_scenes_give_the_cpu_tree() {
+    let Some(gpu) = common::gpu() else { return };
+    let mut scenes: Vec<(String, Vec<Triangle>)> = vec![
+        ("grid 1".into(), grid_triangles(1, 1)),
+        ("grid 40".into(), grid_triangles(2, 40)),
+        ("grid 3000".into(), grid_triangles(3, 3000)),
+    ];
+    for spec in ["spd:toys:5000", "spd:sphereflake:3000", "spd:tetra:2000"] {
+        let mesh = sahkd::scenes::generate(spec).unwrap();
+        scenes.push((spec.into(), mesh.corner_triangles()));
+    }
+    for (name, triangles) in &scenes {
+        for options in option_sets() {
+            cpu_and_gpu_agree(&gpu, name, triangles, &options);
+        }
+    }
+}
+
+fn scene(file: &str) -> Option<Mesh> {
+    let dir = std::env::var_os("SAHKD_SCENES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes")
+        });
+    let path = dir.join(file);
+    if !path.is_file() {
+        eprintln!("SKIPPED: {} is missing", path.display());
+        return None;
+    }
+    Some(Mesh::load(&path).unwrap())
+}
+
+#[test]
+fn real_meshes_give_the_cpu_tree() {
+    let Some(gpu) = common::gpu() else { return };
+    let paper = BuildOptions::paper();
+    for file in ["dragon_res4.ply", "bunny.ply"] {
+        let Some(mesh) = scene(file) else { continue };
+        let triangles = mesh.corner_triangles();
+        cpu_and_gpu_agree(&gpu, file, &triangles, &paper);
+        if file == "dragon_res4.ply" {
+            let all = BuildOptions {
+                axes: Axes::All,
+                ..paper
+            };
+            cpu_and_gpu_agree(&gpu, file, &triangles, &all);
+        }
+    }
+}
+
+#[test]
+fn unsupported_options_and_empty_input() {
+    let Some(gpu) = common::gpu() else { return };
+    let clip = BuildOptions {
+        clip: true,
+        ..BuildOptions::paper()
+    };
+    let err = sahkd_gpu::build(&gpu, grid_triangles(4, 10), &clip)
+        .err()
+        .unwrap();
+    assert!(err.to_string().contains("--clip off only"), "{err}");
+    let empty = sahkd_gpu::build(&gpu, Vec::new(), &BuildOptions::paper()).unwrap();
+    assert_eq!(empty.tree.nodes().len(), 1);
+}
