@@ -20,10 +20,21 @@ pub struct GpuReport {
     pub round_trips_per_level: f64,
 }
 
+/// Whether a GPU can build with `options`: one error line naming what it cannot do.
+#[cfg(feature = "gpu")]
+pub fn check(options: &BuildOptions) -> Result<()> {
+    sahkd_gpu::check_options(options).map_err(|e| anyhow::anyhow!(e))
+}
+
+#[cfg(not(feature = "gpu"))]
+pub fn check(_options: &BuildOptions) -> Result<()> {
+    anyhow::bail!("this sahkd was built without GPU support (cargo feature `gpu`)")
+}
+
 #[cfg(feature = "gpu")]
 pub fn build(mesh: &Mesh, options: &BuildOptions) -> Result<(Build, GpuReport)> {
     use anyhow::anyhow;
-    sahkd_gpu::check_options(options).map_err(|e| anyhow!(e))?;
+    check(options)?;
     mesh.validate()
         .map_err(|e| anyhow!(sahkd::build::BuildError::InvalidMesh(e)))?;
     let gpu = sahkd_gpu::Gpu::new().map_err(|e| anyhow!(e))?;

@@ -3,6 +3,7 @@
 //! Defaults are read from `sahkd::BuildOptions::default()` and `sahkd::CostModel::default()`,
 //! so the library stays the one place that decides them; the command line only shows them.
 
+use crate::gpu::GpuReport;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use sahkd::{Algorithm, Axes, Build, BuildOptions, CostModel, Counting, Mesh};
@@ -160,6 +161,18 @@ impl Builder {
         };
         self.install(|| sahkd::build(mesh, &options))
             .context("cannot build the tree")
+    }
+
+    /// Builds the tree of `mesh` on the builder's device: the CPU pool, or a GPU (the level
+    /// builder only), with the GPU's report. Every command that builds goes through here.
+    pub fn build_on_device(&self, mesh: &Mesh) -> Result<(Build, Option<GpuReport>)> {
+        match self.device {
+            DeviceArg::Cpu => Ok((self.build(mesh)?, None)),
+            DeviceArg::Gpu => {
+                let (build, report) = crate::gpu::build(mesh, &self.options)?;
+                Ok((build, Some(report)))
+            }
+        }
     }
 }
 

@@ -107,3 +107,98 @@ fn gpu_mistakes_are_one_clear_line() {
         );
     }
 }
+
+/// `sahkd bench` of a small scene on `device` (level builder only, clip off, tiny pictures):
+/// results.json and table1.md, or `None` (skip) when no adapter exists outside CI.
+fn bench_level(device: &str, out: &std::path::Path) -> Option<(Value, String)> {
+    let out_dir = out.to_str().unwrap();
+    #[rustfmt::skip]
+    let args = [
+        "bench", "--quiet", "spd:toys:500", "--device", device, "--clip", "off",
+        "--algorithms", "level", "--threads", "1", "--repeat", "1",
+        "--width", "32", "--height", "32", "--ao-size", "16", "--ao-samples", "2",
+        "--out", out_dir,
+    ];
+    let out = sahkd(&args, &[]);
+    if !out.status.success() && stderr(&out).contains("no GPU adapter found") {
+        assert!(std::env::var_os("CI").is_none(), "{}", stderr(&out));
+        eprintln!("skipping: {}", stderr(&out));
+        return None;
+    }
+    assert!(out.status.success(), "{args:?}: {}", stderr(&out));
+    let read = |name: &str| std::fs::read_to_string(std::path::Path::new(out_dir).join(name));
+    let results = serde_json::from_str(&read("results.json").unwrap()).unwrap();
+    Some((results, read("table1.md").unwrap()))
+}
+
+#[test]
+fn bench_on_the_gpu_gives_the_cpu_tree_and_reports_each_build() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some((gpu, gpu_md)) = bench_level("gpu", &dir.path().join("gpu")) else {
+        return;
+    };
+    let (cpu, cpu_md) = bench_level("cpu", &dir.path().join("cpu")).unwrap();
+    assert_eq!(gpu["settings"]["device"], "gpu");
+    assert_eq!(cpu["settings"]["device"], "cpu");
+    assert_eq!(gpu["settings"]["build_options"]["clip"], false);
+    let row = |r: &Value| r["scenes"][0]["builds"][0]["measured"].clone();
+    let (g, c) = (row(&gpu), row(&cpu));
+    assert!(c["gpu"].is_null());
+    // Same tree: its statistics agree (tests/gpu.rs's build test and the library compare more).
+    for key in [
+        "sah_cost",
+        "nodes",
+        "leaves",
+        "references",
+        "depth",
+        "tree_bytes",
+    ] {
+        assert_eq!(g[key], c[key], "{key}");
+    }
+    let report = &g["gpu"];
+    let adapter = report["adapter"].as_str().unwrap();
+    assert!(!adapter.is_empty());
+    for key in ["upload_ms", "download_ms"] {
+        assert!(report[key].as_f64().unwrap() >= 0.0, "{key}");
+    }
+    let phases = report["phases_ms"].as_array().unwrap();
+    assert_eq!(phases.len(), 8);
+    assert!(phases.iter().all(|p| p[1].as_f64().unwrap() >= 0.0));
+    let levels = report["levels"].as_u64().unwrap();
+    assert_eq!(levels, g["depth"].as_u64().unwrap() + 1);
+    assert_eq!(report["round_trips"].as_u64().unwrap(), 2 * levels);
+    assert_eq!(report["round_trips_per_level"].as_f64().unwrap(), 2.0);
+    // table1.md says where the builds ran and tabulates the GPU report.
+    assert!(gpu_md.contains(&format!(
+        "level builder's trees built on the GPU ({adapter}"
+    )));
+    assert!(gpu_md.contains("## GPU builds"));
+    let gpu_row = gpu_md
+        .lines()
+        .find(|l| l.starts_with("| spd:toys:500 | 1 | "))
+        .expect("a GPU build row");
+    assert!(
+        gpu_row.ends_with(&format!(" {levels} | {} | 2.0 |", 2 * levels)),
+        "{gpu_row}"
+    );
+    assert!(cpu_md.contains("Device: every build on the CPU."));
+    assert!(!cpu_md.contains("## GPU builds"));
+}
+
+#[test]
+fn bench_on_the_gpu_refuses_clipping_in_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    // bench clips by default, as the library does.
+    for clip in [&[][..], &["--clip", "on"]] {
+        let mut args = vec!["bench", "spd:toys:500", "--device", "gpu", "--out"];
+        args.push(dir.path().to_str().unwrap());
+        args.extend_from_slice(clip);
+        let out = sahkd(&args, &[]);
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        assert_eq!(
+            stderr(&out).trim(),
+            "error: --device gpu supports --clip off only for now"
+        );
+        assert!(!dir.path().join("results.json").exists());
+    }
+}

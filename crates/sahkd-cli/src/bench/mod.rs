@@ -6,6 +6,7 @@ pub mod charts;
 pub mod paper;
 pub mod table;
 
+use crate::gpu::GpuReport;
 use crate::options::Builder;
 use anyhow::Result;
 use paper::PaperScene;
@@ -112,6 +113,9 @@ pub struct Settings {
     pub threads: Vec<usize>,
     pub repeat: usize,
     pub naive_cap: usize,
+    /// Where the level builder's trees are built, "cpu" or "gpu"; every other builder, and
+    /// every ray, runs on the CPU.
+    pub device: &'static str,
     /// Options of every build; only `algorithm`, `threads` and, for Fig. 1, the depth limit
     /// change between builds.
     pub build_options: BuildOptions,
@@ -196,6 +200,9 @@ pub struct Measured {
     pub tree_bytes: usize,
     /// The builder's working arrays at their peak.
     pub peak_working_bytes: usize,
+    /// Built on a GPU: the adapter, upload, per-phase and download times and host round
+    /// trips of the last timed build.
+    pub gpu: Option<GpuReport>,
 }
 
 /// Ray throughput through one builder's tree.
@@ -240,19 +247,25 @@ pub struct BuildTimes {
     pub after_sort: Spread,
 }
 
-/// Builds once to warm up, then `repeat` times; `step` is called after every build.
-/// Returns the times and the last build.
+/// The last of repeated builds, and its GPU report when it was built on a GPU.
+pub struct LastBuild {
+    pub build: sahkd::Build,
+    pub gpu: Option<GpuReport>,
+}
+
+/// Builds once to warm up, then `repeat` times, on the builder's device; `step` is called
+/// after every build. Returns the times and the last build.
 pub fn measure_builds(
     builder: &Builder,
     mesh: &Mesh,
     repeat: usize,
     step: &dyn Fn(),
-) -> Result<(BuildTimes, sahkd::Build)> {
-    let mut last = builder.build(mesh)?;
+) -> Result<(BuildTimes, LastBuild)> {
+    let (mut last, mut gpu) = builder.build_on_device(mesh)?;
     step();
     let (mut total, mut presort, mut after_sort) = (Vec::new(), Vec::new(), Vec::new());
     for _ in 0..repeat {
-        last = builder.build(mesh)?;
+        (last, gpu) = builder.build_on_device(mesh)?;
         total.push(last.report.build_ms);
         presort.push(last.report.presort_ms);
         after_sort.push(last.report.build_ms - last.report.presort_ms);
@@ -263,11 +276,12 @@ pub fn measure_builds(
         presort: Spread::of(presort),
         after_sort: Spread::of(after_sort),
     };
-    Ok((times, last))
+    Ok((times, LastBuild { build: last, gpu }))
 }
 
-/// A build's times and tree statistics.
-pub fn measured(build: &sahkd::Build, options: &BuildOptions, times: BuildTimes) -> Measured {
+/// A build's times, tree statistics and GPU report.
+pub fn measured(last: &LastBuild, options: &BuildOptions, times: BuildTimes) -> Measured {
+    let build = &last.build;
     let stats = build.tree.stats(&options.cost);
     Measured {
         build_ms: times.total,
@@ -279,6 +293,7 @@ pub fn measured(build: &sahkd::Build, options: &BuildOptions, times: BuildTimes)
         depth: stats.max_depth,
         tree_bytes: stats.bytes,
         peak_working_bytes: build.report.peak_working_bytes,
+        gpu: last.gpu.clone(),
     }
 }
 

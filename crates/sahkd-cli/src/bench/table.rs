@@ -3,6 +3,7 @@
 
 use super::{Results, SceneResult, Spread};
 use crate::format;
+use crate::gpu::GpuReport;
 use crate::options::{axes_name, counting_name};
 use std::fmt::Write;
 
@@ -60,7 +61,7 @@ pub fn markdown(results: &Results) -> String {
     );
     let _ = writeln!(
         md,
-        "Settings: every build with the library defaults ({} axes, {} counting, clip {}, \
+        "Settings: every build with the same options ({} axes, {} counting, clip {}, \
          K_T = {}, K_I = {}, empty bonus {}, leaf size {}, depth limit {}); one warm-up build, \
          then {} timed builds, median (min–max) in ms; threads {:?} (the serial sweep at {} only); \
          naive only up to {} triangles.\n",
@@ -79,6 +80,7 @@ pub fn markdown(results: &Results) -> String {
         s.threads[0],
         format::count(s.naive_cap as u64),
     );
+    let _ = writeln!(md, "{}\n", device_note(results));
 
     let _ = writeln!(
         md,
@@ -162,6 +164,7 @@ pub fn markdown(results: &Results) -> String {
     }
 
     all_builds(&mut md, results);
+    gpu_builds(&mut md, results);
     rays(&mut md, results);
     levels(&mut md, results);
     speedups(&mut md, results);
@@ -225,6 +228,80 @@ fn all_builds(md: &mut String, results: &Results) {
                 }
             }
         }
+    }
+}
+
+/// Where the builds ran, and on which GPU adapter(s).
+fn device_note(results: &Results) -> String {
+    if results.settings.device != "gpu" {
+        return "Device: every build on the CPU.".into();
+    }
+    let mut adapters: Vec<&str> = gpu_rows(results)
+        .map(|(_, _, gpu)| gpu.adapter.as_str())
+        .collect();
+    adapters.sort_unstable();
+    adapters.dedup();
+    format!(
+        "Device: the level builder's trees built on the GPU ({}; --device gpu), every other \
+         builder and all rays on the CPU.",
+        if adapters.is_empty() {
+            "no level build ran".to_string()
+        } else {
+            adapters.join(", ")
+        }
+    )
+}
+
+/// Every measured build that ran on a GPU: scene label, threads and its report.
+fn gpu_rows(results: &Results) -> impl Iterator<Item = (&str, usize, &GpuReport)> {
+    results.scenes.iter().flat_map(|scene| {
+        scene.builds.iter().filter_map(move |b| {
+            let gpu = b.measured.as_ref()?.gpu.as_ref()?;
+            Some((scene.label.as_str(), b.threads, gpu))
+        })
+    })
+}
+
+fn gpu_builds(md: &mut String, results: &Results) {
+    let Some((_, _, first)) = gpu_rows(results).next() else {
+        return;
+    };
+    let _ = writeln!(md, "\n## GPU builds\n");
+    let _ = writeln!(
+        md,
+        "The level builder on the GPU, the last timed build of each row above: ms of the \
+         upload, of each phase summed over the levels, and of the download; host round trips \
+         (reads of GPU results by the host) per build and per level. The host's pre-sort is the \
+         pre-sort column above (serial: the thread count does not change a GPU build).\n"
+    );
+    let _ = write!(md, "| scene | threads | adapter | upload |");
+    for (name, _) in &first.phases_ms {
+        let _ = write!(md, " {name} |");
+    }
+    let _ = writeln!(md, " download | levels | round trips | per level |");
+    let _ = writeln!(
+        md,
+        "|---|---:|---|---:|{}---:|---:|---:|---:|",
+        "---:|".repeat(first.phases_ms.len())
+    );
+    for (label, threads, gpu) in gpu_rows(results) {
+        let _ = write!(
+            md,
+            "| {label} | {threads} | {} | {} |",
+            gpu.adapter,
+            number(gpu.upload_ms)
+        );
+        for (_, ms) in &gpu.phases_ms {
+            let _ = write!(md, " {} |", number(*ms));
+        }
+        let _ = writeln!(
+            md,
+            " {} | {} | {} | {:.1} |",
+            number(gpu.download_ms),
+            gpu.levels,
+            gpu.round_trips,
+            gpu.round_trips_per_level
+        );
     }
 }
 

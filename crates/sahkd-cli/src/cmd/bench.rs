@@ -10,7 +10,7 @@ use crate::bench::{
     LevelPoint, Machine, RaySettings, Results, SceneResult, Settings,
 };
 use crate::input::{self, Loaded, MeshArg};
-use crate::options::{algorithm_name, AlgorithmArg, Builder};
+use crate::options::{algorithm_name, AlgorithmArg, Builder, DeviceArg, Switch};
 use crate::progress::Progress;
 use anyhow::{bail, Context as _, Result};
 use indicatif::ProgressBar;
@@ -84,6 +84,16 @@ pub struct Args {
           value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub ao_samples: u32,
 
+    /// Where the level builder's trees are built: the CPU, or a GPU through wgpu (needs
+    /// --clip off); the other builders and all rays run on the CPU either way
+    #[arg(long, value_enum, value_name = "DEVICE", default_value_t = DeviceArg::Cpu)]
+    pub device: DeviceArg,
+
+    /// Clip straddling triangles to each child (perfect splits), in every build
+    #[arg(long, value_enum, value_name = "ON|OFF",
+          default_value_t = BuildOptions::default().clip.into())]
+    pub clip: Switch,
+
     /// Folder for results.json, table1.md and the charts (created if missing)
     #[arg(long, value_name = "DIR", default_value = "bench")]
     pub out: PathBuf,
@@ -124,6 +134,13 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
     check_writable(&args.out)?;
 
     let settings = settings(&args);
+    if args.device == DeviceArg::Gpu {
+        // Refused before any work, with the error `build --device gpu` gives.
+        crate::gpu::check(&BuildOptions {
+            algorithm: Algorithm::Level,
+            ..settings.build_options
+        })?;
+    }
     let scenes = load_scenes(&args, context, &progress)?;
     let mut machine = Machine::describe();
 
@@ -184,7 +201,14 @@ fn settings(args: &Args) -> Settings {
         threads,
         repeat: args.repeat as usize,
         naive_cap: args.naive_cap,
-        build_options: BuildOptions::default(),
+        device: match args.device {
+            DeviceArg::Cpu => "cpu",
+            DeviceArg::Gpu => "gpu",
+        },
+        build_options: BuildOptions {
+            clip: args.clip.into(),
+            ..BuildOptions::default()
+        },
         rays: RaySettings {
             camera: "front: from +z, two scene diagonals from the centre of the scene box, \
                      looking at it, y up, 45 degree vertical field of view",
@@ -281,6 +305,15 @@ fn total_steps(scenes: &[Scene], settings: &Settings) -> u64 {
     total + level_runs(settings).len() as u64 * FIG1_LEVELS as u64 * per_measurement
 }
 
+/// The device a builder runs on: the level builder on the chosen one, the rest on the CPU.
+fn device(name: &str, settings: &Settings) -> DeviceArg {
+    if name == "level" && settings.device == "gpu" {
+        DeviceArg::Gpu
+    } else {
+        DeviceArg::Cpu
+    }
+}
+
 fn algorithm(name: &str) -> Algorithm {
     match name {
         "sweep" => Algorithm::Sweep,
@@ -327,15 +360,16 @@ fn measure_scene(
                 algorithm: algorithm(name),
                 threads: Some(threads),
                 ..settings.build_options
-            })?;
-            let (times, build) = measure_builds(&builder, mesh, settings.repeat, step)?;
+            })?
+            .on(device(name, settings));
+            let (times, last) = measure_builds(&builder, mesh, settings.repeat, step)?;
             builds.push(BuildRow {
                 algorithm: name,
                 threads,
                 skipped: None,
-                measured: Some(measured(&build, &builder.options, times)),
+                measured: Some(measured(&last, &builder.options, times)),
             });
-            last_tree = Some(build.tree);
+            last_tree = Some(last.build.tree);
         }
         if let Some(tree) = last_tree {
             bar.set_message(format!("{label}: {name}, rays"));
@@ -378,7 +412,7 @@ fn measure_levels(
                 ..settings.build_options
             };
             options.cost.max_depth = Some(level);
-            let builder = Builder::new(options)?;
+            let builder = Builder::new(options)?.on(device(name, settings));
             let (times, _) = measure_builds(&builder, &scene.loaded.mesh, settings.repeat, step)?;
             points.push(LevelPoint {
                 level,

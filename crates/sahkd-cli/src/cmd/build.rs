@@ -114,19 +114,10 @@ impl Built {
             "building {} triangles",
             format::count(loaded.mesh.triangles.len() as u64)
         ));
-        let (build, gpu) = match builder.device {
-            DeviceArg::Cpu => (builder.build(&loaded.mesh), None),
-            DeviceArg::Gpu => match crate::gpu::build(&loaded.mesh, &builder.options) {
-                Ok((build, report)) => (Ok(build), Some(report)),
-                Err(e) => (Err(e), None),
-            },
-        };
+        let built = builder.build_on_device(&loaded.mesh);
         spinner.finish_and_clear();
-        Ok(Built {
-            loaded,
-            build: build?,
-            gpu,
-        })
+        let (build, gpu) = built?;
+        Ok(Built { loaded, build, gpu })
     }
 
     /// The JSON report; `valid` is `None` when the tree was not validated.
