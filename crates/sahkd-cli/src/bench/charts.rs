@@ -34,6 +34,28 @@ macro_rules! draw {
     };
 }
 
+/// The legend every chart shares: upper left, on a white box with a black border.
+fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    path: &Path,
+    chart: &mut ChartContext<'a, DB, CT>,
+    font_size: u32,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    draw!(
+        path,
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font((FONT, font_size))
+            .draw()
+    );
+    Ok(())
+}
+
 /// How Fig. 2 draws a builder, as its legend says.
 fn builder_style(algorithm: &str) -> &'static str {
     match algorithm {
@@ -167,16 +189,7 @@ pub fn table1(path: &Path, results: &Results) -> Result<()> {
                 .label(*title)
                 .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 14, y + 6)], c.filled()));
         }
-        draw!(
-            path,
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperLeft)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font((FONT, 16))
-                .draw()
-        );
+        draw_legend(path, &mut chart, 16)?;
     }
     draw!(path, root.present());
     Ok(())
@@ -248,16 +261,7 @@ pub fn fig1(path: &Path, results: &Results) -> Result<()> {
             chart.draw_series(points.iter().map(|&p| Circle::new(p, 5, c.filled())))
         );
     }
-    draw!(
-        path,
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font((FONT, 18))
-            .draw()
-    );
+    draw_legend(path, &mut chart, 18)?;
     draw!(path, root.present());
     Ok(())
 }
@@ -391,16 +395,7 @@ pub fn fig2(path: &Path, results: &Results) -> Result<()> {
             ),
         };
     }
-    draw!(
-        path,
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font((FONT, 17))
-            .draw()
-    );
+    draw_legend(path, &mut chart, 17)?;
     draw!(path, root.present());
     Ok(())
 }
