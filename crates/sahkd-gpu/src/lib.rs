@@ -11,6 +11,7 @@
 //!   axis), by three rounds of atomic minima.
 //! - [`partition`]: the stable split of every node's references into its two children
 //!   (flags, scan, scatter).
+//! - [`clip`]: software f64 in WGSL, for clipping triangles bit for bit like the CPU.
 //! - [`level`]: the level builder itself (clip off): the same tree as the CPU's.
 //!
 //! On the host stay: the one-off presort of the nine root lists before the upload (no GPU sort
@@ -25,6 +26,7 @@
 //! equal in all three are the same plane of the same node, hence the same split. Costs differ
 //! from the CPU's only if a GPU flushes subnormal intermediates (see `shaders/price.wgsl`).
 
+pub mod clip;
 mod device;
 mod kernel;
 pub mod level;
