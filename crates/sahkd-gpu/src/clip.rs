@@ -1,13 +1,19 @@
-//! Software f64 in WGSL ([`CLIP_WGSL`], see `shaders/clip.wgsl`), for clipping triangles on
-//! the GPU bit for bit like [`sahkd::clip::clipped_bounds`], and a test-facing launch of it.
+//! Triangles clipped to boxes on the GPU, bit for bit [`sahkd::clip::clipped_bounds`]: the
+//! WGSL library [`CLIP_WGSL`] (software f64, see `shaders/clip.wgsl`) for the level builder's
+//! kernels, and test-facing launches of it over host data.
 
 use crate::kernel::{Arg, Kernel};
+use crate::price::box_words;
 use crate::{Gpu, GpuError};
+use sahkd::{Aabb, Triangle, Vec3};
 
-/// The library: the `f64_*` operations. No bindings or entry points; every name starts with `f64_`, `clip_` or `F64_`.
+/// The library: `clip_bounds(tri: array<vec3<f32>, 3>, box_lo: vec3<f32>, box_hi: vec3<f32>)
+/// -> ClipResult { lo: vec3<f32>, hi: vec3<f32>, empty: bool }` and the `f64_*` operations.
+/// No bindings or entry points; every name starts with `f64_`, `clip_` or `F64_`.
 pub const CLIP_WGSL: &str = include_str!("shaders/clip.wgsl");
 
-/// Entry point over host data: `f64_ops` (each operation on two f64s and one f32).
+/// Entry points over host data: `clip_pairs` (9 f32 corners and 6 f32 box bounds in, lo, hi
+/// and the empty flag out) and `f64_ops` (each operation on two f64s and one f32).
 const KERNELS: &str = r#"
 struct ClipParams {
     n: u32,
@@ -20,6 +26,43 @@ struct ClipParams {
 @group(0) @binding(1) var<storage, read> clip_in0: array<u32>;
 @group(0) @binding(2) var<storage, read> clip_in1: array<u32>;
 @group(0) @binding(3) var<storage, read_write> clip_out: array<u32>;
+
+fn clip_f32_at(i: u32) -> f32 {
+    return bitcast<f32>(clip_in0[i]);
+}
+
+// Pair i: corners at in0[9i..], box (lo.xyz, hi.xyz) at in1[6i..]; out[7i..] = lo, hi, empty.
+@compute @workgroup_size(256)
+fn clip_pairs(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let i = (wid.y * nwg.x + wid.x) * 256u + lid;
+    if (i >= clip_params.n) {
+        return;
+    }
+    let t = 9u * i;
+    let tri = array<vec3<f32>, 3>(
+        vec3<f32>(clip_f32_at(t), clip_f32_at(t + 1u), clip_f32_at(t + 2u)),
+        vec3<f32>(clip_f32_at(t + 3u), clip_f32_at(t + 4u), clip_f32_at(t + 5u)),
+        vec3<f32>(clip_f32_at(t + 6u), clip_f32_at(t + 7u), clip_f32_at(t + 8u)),
+    );
+    let b = 6u * i;
+    let lo = bitcast<vec3<f32>>(vec3<u32>(clip_in1[b], clip_in1[b + 1u], clip_in1[b + 2u]));
+    let hi = bitcast<vec3<f32>>(vec3<u32>(clip_in1[b + 3u], clip_in1[b + 4u], clip_in1[b + 5u]));
+    let r = clip_bounds(tri, lo, hi);
+    let o = 7u * i;
+    let rl = bitcast<vec3<u32>>(r.lo);
+    let rh = bitcast<vec3<u32>>(r.hi);
+    clip_out[o] = rl.x;
+    clip_out[o + 1u] = rl.y;
+    clip_out[o + 2u] = rl.z;
+    clip_out[o + 3u] = rh.x;
+    clip_out[o + 4u] = rh.y;
+    clip_out[o + 5u] = rh.z;
+    clip_out[o + 6u] = u32(r.empty);
+}
 
 // Case i: a, b (f64, high word first) and c (f32) at in0[5i..]; out[17i..] = a + b, a - b,
 // a * b, a / b, a.min(b), a.max(b) (2 words each), flags (lt, le, ge, eq in bits 0..3),
@@ -87,6 +130,33 @@ fn run(
     );
     gpu.submit(encoder);
     gpu.download(&out, n * out_words)
+}
+
+/// `clipped_bounds(&tris[i], &boxes[i])` for every i, computed on the GPU, with the kernel's
+/// own empty flag (which must equal `is_empty()` of the box).
+pub fn clip_triangles(
+    gpu: &Gpu,
+    tris: &[Triangle],
+    boxes: &[Aabb],
+) -> Result<Vec<(Aabb, bool)>, GpuError> {
+    assert_eq!(tris.len(), boxes.len(), "one box per triangle");
+    let corners: Vec<f32> = tris
+        .iter()
+        .flat_map(|t| t.iter().flat_map(|v| v.0))
+        .collect();
+    let inputs = [
+        gpu.upload("triangles", &corners),
+        gpu.upload("boxes", &box_words(boxes)),
+    ];
+    let words = run(gpu, "clip_pairs", tris.len(), [&inputs[0], &inputs[1]], 7)?;
+    Ok(words
+        .chunks_exact(7)
+        .map(|w| {
+            let f = |k: usize| f32::from_bits(w[k]);
+            let b = Aabb::new(Vec3::new(f(0), f(1), f(2)), Vec3::new(f(3), f(4), f(5)));
+            (b, w[6] != 0)
+        })
+        .collect())
 }
 
 /// What the library's soft-f64 operations give for one case `(a, b, c)` (see [`f64_ops`]).

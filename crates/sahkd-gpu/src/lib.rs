@@ -11,7 +11,7 @@
 //!   axis), by three rounds of atomic minima.
 //! - [`partition`]: the stable split of every node's references into its two children
 //!   (flags, scan, scatter).
-//! - [`clip`]: software f64 in WGSL, for clipping triangles bit for bit like the CPU.
+//! - [`clip`]: triangles clipped to boxes in software f64, bit for bit the CPU's clip.
 //! - [`level`]: the level builder itself (clip off): the same tree as the CPU's.
 //!
 //! On the host stay: the one-off presort of the nine root lists before the upload (no GPU sort

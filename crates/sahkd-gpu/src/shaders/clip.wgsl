@@ -1,7 +1,11 @@
-// Software f64 for clipping triangles to boxes bit for bit like the CPU's
-// `sahkd::clip::clipped_bounds` (Sutherland-Hodgman in IEEE f64, bounds rounded outwards to
-// f32), emulated with integers since WGSL has no f64. A library: no bindings, no entry
+// A triangle clipped to a box, bit for bit the CPU's `sahkd::clip::clipped_bounds`: the same
+// Sutherland-Hodgman pass in IEEE f64, emulated with integers since WGSL has no f64, then the
+// bounds rounded outwards to f32 and intersected with the box. A library: no bindings, no entry
 // point; every name starts with `f64_`, `clip_` so it can be put in front of other kernels.
+//
+// Entry: `clip_bounds(tri: array<vec3<f32>, 3>, box_lo: vec3<f32>, box_hi: vec3<f32>)
+// -> ClipResult`. The f32s are only moved and bitcast, never computed on, so subnormals keep
+// their bits on GPUs that flush them in arithmetic.
 //
 // Soft f64. A value is its IEEE bit pattern as vec2<u32>: x = sign, 11 exponent bits and the
 // top 20 mantissa bits; y = the low 32 mantissa bits. Add, sub, mul and div are correctly
@@ -337,7 +341,9 @@ fn f64_eq(a: f64_bits, b: f64_bits) -> bool {
 }
 
 // `a.min(b)` and `a.max(b)` as the CPU's clip compiles them: between -0 and +0, `a` (the
-// running bound) is kept, so the first zero met wins (see tests/clip.rs, which checks it).
+// running bound) is kept, so the first zero met wins. Rust leaves this open and LLVM may swap
+// the operands of a min; it is what rustc 1.95 makes of clipped_bounds at opt-level 2 and 3
+// (thin LTO), and tests/clip.rs fails if a compiler ever changes it.
 fn f64_min(a: f64_bits, b: f64_bits) -> f64_bits {
     if (f64_lt(b, a)) {
         return b;
@@ -384,4 +390,131 @@ fn f64_to_f32_directed(a: f64_bits, up: bool) -> u32 {
     let inexact = any(clip_u64_shl(kept, drop) != x.m);
     // Carrying out of 0x7f7fffff away from zero gives infinity, as it should.
     return sign | ((field << 23u) + kept.y + u32(away && inexact));
+}
+
+// --- The clip.
+
+// The clipped box; `lo`/`hi` are Aabb::EMPTY (+inf, -inf) when the triangle misses the box.
+// `empty` is Aabb::is_empty of the box: some axis without lo <= hi.
+struct ClipResult {
+    lo: vec3<f32>,
+    hi: vec3<f32>,
+    empty: bool,
+}
+
+// f32 bits ordered like the value (no NaN); -0 and +0 share a key.
+fn clip_f32_key(bits: u32) -> u32 {
+    if ((bits & F64_ABS) == 0u) {
+        return F64_SIGN;
+    }
+    if ((bits & F64_SIGN) != 0u) {
+        return ~bits;
+    }
+    return bits | F64_SIGN;
+}
+
+// `a.max(b)` / `a.min(b)` of f32 as Aabb::intersection compiles in the CPU's clip: `a` (the
+// clipped bound) is kept between -0 and +0.
+fn clip_f32_max(a: u32, b: u32) -> u32 {
+    return select(a, b, clip_f32_key(a) < clip_f32_key(b));
+}
+
+fn clip_f32_min(a: u32, b: u32) -> u32 {
+    return select(a, b, clip_f32_key(b) < clip_f32_key(a));
+}
+
+fn clip_inside(c: f64_bits, bound: f64_bits, keep_below: bool) -> bool {
+    if (keep_below) {
+        return f64_le(c, bound);
+    }
+    return f64_ge(c, bound);
+}
+
+fn clip_empty() -> ClipResult {
+    let lo = bitcast<vec3<f32>>(vec3<u32>(0x7f800000u));
+    let hi = bitcast<vec3<f32>>(vec3<u32>(0xff800000u));
+    return ClipResult(lo, hi, true);
+}
+
+// The bounds of the part of the triangle inside the closed box, as the CPU computes them:
+// for each plane in the order x lo, x hi, y lo, ..., z hi, planes that cut nothing skipped,
+// each kept vertex and then each crossing of an edge (p, q) emitted in edge order, a crossing
+// p + t (q - p) with t = (bound - p) / (q - p) on the plane's axis and exactly `bound` on it.
+fn clip_bounds(tri: array<vec3<f32>, 3>, box_lo: vec3<f32>, box_hi: vec3<f32>) -> ClipResult {
+    // Two polygons of up to 9 vertices used in turn: coordinate a of vertex i of polygon k
+    // at 27 k + 3 i + a.
+    var poly: array<f64_bits, 54>;
+    var corners = tri;
+    for (var i = 0u; i < 3u; i = i + 1u) {
+        for (var a = 0u; a < 3u; a = a + 1u) {
+            poly[3u * i + a] = f64_from_f32(corners[i][a]);
+        }
+    }
+    var n = 3u;
+    var src = 0u;
+    for (var plane = 0u; plane < 6u; plane = plane + 1u) {
+        let axis = plane / 2u;
+        let keep_below = (plane & 1u) == 1u;
+        let bound = f64_from_f32(select(box_lo[axis], box_hi[axis], keep_below));
+        var cuts = false;
+        for (var i = 0u; i < n; i = i + 1u) {
+            cuts = cuts || !clip_inside(poly[src + 3u * i + axis], bound, keep_below);
+        }
+        if (!cuts) {
+            continue;
+        }
+        let dst = 27u - src;
+        var m = 0u;
+        for (var i = 0u; i < n; i = i + 1u) {
+            let j = select(i + 1u, 0u, i + 1u == n);
+            let p = src + 3u * i;
+            let q = src + 3u * j;
+            let pin = clip_inside(poly[p + axis], bound, keep_below);
+            let qin = clip_inside(poly[q + axis], bound, keep_below);
+            // The CPU has no bound check here (it would panic past 9 vertices, which convex
+            // polygons never reach); this one only keeps the GPU inside the array.
+            if (pin && m < 9u) {
+                for (var a = 0u; a < 3u; a = a + 1u) {
+                    poly[dst + 3u * m + a] = poly[p + a];
+                }
+                m = m + 1u;
+            }
+            if (pin != qin && m < 9u) {
+                let t = f64_div(f64_sub(bound, poly[p + axis]), f64_sub(poly[q + axis], poly[p + axis]));
+                for (var a = 0u; a < 3u; a = a + 1u) {
+                    var x = bound;
+                    if (a != axis) {
+                        let pa = poly[p + a];
+                        x = f64_add(pa, f64_mul(t, f64_sub(poly[q + a], pa)));
+                    }
+                    poly[dst + 3u * m + a] = x;
+                }
+                m = m + 1u;
+            }
+        }
+        n = m;
+        if (n == 0u) {
+            return clip_empty();
+        }
+        src = dst;
+    }
+    // min/max from +-inf: the first vertex sets the bounds (finite, so strictly inside).
+    var lo = vec3<u32>();
+    var hi = vec3<u32>();
+    for (var a = 0u; a < 3u; a = a + 1u) {
+        var l = poly[src + a];
+        var h = l;
+        for (var i = 1u; i < n; i = i + 1u) {
+            let c = poly[src + 3u * i + a];
+            l = f64_min(l, c);
+            h = f64_max(h, c);
+        }
+        lo[a] = clip_f32_max(f64_to_f32_directed(l, false), bitcast<u32>(box_lo[a]));
+        hi[a] = clip_f32_min(f64_to_f32_directed(h, true), bitcast<u32>(box_hi[a]));
+    }
+    var empty = false;
+    for (var a = 0u; a < 3u; a = a + 1u) {
+        empty = empty || clip_f32_key(hi[a]) < clip_f32_key(lo[a]);
+    }
+    return ClipResult(bitcast<vec3<f32>>(lo), bitcast<vec3<f32>>(hi), empty);
 }
