@@ -12,6 +12,8 @@
 //! - [`partition`]: the stable split of every node's references into its two children
 //!   (flags, scan, scatter).
 //! - [`clip`]: triangles clipped to boxes in software f64, bit for bit the CPU's clip.
+//! - [`sort`]: records sorted by a 3-word key (bitonic; steps within a tile in workgroup
+//!   memory).
 //! - [`level`]: the level builder itself (clip off): the same tree as the CPU's.
 //!
 //! On the host stay: the one-off presort of the nine root lists before the upload (no GPU sort
@@ -34,6 +36,7 @@ pub mod partition;
 pub mod price;
 pub mod scan;
 pub mod segmin;
+pub mod sort;
 
 pub use device::{Gpu, GpuError};
 pub use kernel::{Arg, Kernel};
