@@ -10,7 +10,9 @@ use crate::geometry::{Aabb, Triangle, Vec3};
 const MAX_VERTS: usize = 9;
 
 /// Bounds of the part of `tri` inside the closed box `b`, or an empty box when the triangle
-/// misses it. Computed in f64 and rounded outwards to f32, then limited to `b`.
+/// misses it. Computed in f64 and rounded outwards to f32, then limited to `b`; a zero bound
+/// is +0 (which zero a `min` of -0 and +0 keeps is up to the compiler, and the GPU's clip must
+/// give the same bits).
 pub fn clipped_bounds(tri: &Triangle, b: &Aabb) -> Aabb {
     // Two polygon buffers used in turn, so that no plane copies a whole polygon.
     let mut bufs = [[[0f64; 3]; MAX_VERTS]; 2];
@@ -42,7 +44,9 @@ pub fn clipped_bounds(tri: &Triangle, b: &Aabb) -> Aabb {
             for i in 0..n {
                 let (p, q) = (&poly[i], &poly[if i + 1 == n { 0 } else { i + 1 }]);
                 let (pin, qin) = (inside(p), inside(q));
-                if pin {
+                // Rounding can bend a clipped polygon very slightly; the caps keep a pathological
+                // one inside the buffers (as the GPU's clip does) instead of panicking.
+                if pin && m < MAX_VERTS {
                     next[m] = *p;
                     m += 1;
                 }
@@ -72,8 +76,9 @@ pub fn clipped_bounds(tri: &Triangle, b: &Aabb) -> Aabb {
             hi[a] = hi[a].max(p[a]);
         }
     }
-    let out = Aabb::new(Vec3(lo.map(round_down)), Vec3(hi.map(round_up)));
-    out.intersection(*b)
+    let out = Aabb::new(Vec3(lo.map(round_down)), Vec3(hi.map(round_up))).intersection(*b);
+    // x + 0.0 is x, except that -0 becomes +0.
+    Aabb::new(Vec3(out.lo.0.map(|x| x + 0.0)), Vec3(out.hi.0.map(|x| x + 0.0)))
 }
 
 fn round_down(x: f64) -> f32 {

@@ -436,6 +436,12 @@ fn clip_empty() -> ClipResult {
     return ClipResult(lo, hi, true);
 }
 
+// -0 as +0, as the CPU's clip returns it: which zero a min or max of -0 and +0 keeps is the
+// compiler's choice on the CPU, so both sides normalise instead of copying that choice.
+fn clip_plus_zero(bits: u32) -> u32 {
+    return select(bits, 0u, bits == 0x80000000u);
+}
+
 // The bounds of the part of the triangle inside the closed box, as the CPU computes them:
 // for each plane in the order x lo, x hi, y lo, ..., z hi, planes that cut nothing skipped,
 // each kept vertex and then each crossing of an edge (p, q) emitted in edge order, a crossing
@@ -509,8 +515,8 @@ fn clip_bounds(tri: array<vec3<f32>, 3>, box_lo: vec3<f32>, box_hi: vec3<f32>) -
             l = f64_min(l, c);
             h = f64_max(h, c);
         }
-        lo[a] = clip_f32_max(f64_to_f32_directed(l, false), bitcast<u32>(box_lo[a]));
-        hi[a] = clip_f32_min(f64_to_f32_directed(h, true), bitcast<u32>(box_hi[a]));
+        lo[a] = clip_plus_zero(clip_f32_max(f64_to_f32_directed(l, false), bitcast<u32>(box_lo[a])));
+        hi[a] = clip_plus_zero(clip_f32_min(f64_to_f32_directed(h, true), bitcast<u32>(box_hi[a])));
     }
     var empty = false;
     for (var a = 0u; a < 3u; a = a + 1u) {
