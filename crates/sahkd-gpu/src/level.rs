@@ -1,20 +1,23 @@
-//! The level builder on the GPU (clip off): the same tree as the CPU level builder with the
-//! same options, its data-parallel phases as WGSL kernels (`shaders/level.wgsl` and the
-//! kernels of [`crate::price`], [`crate::segmin`], [`crate::scan`]).
+//! The level builder on the GPU: the same tree as the CPU level builder with the same
+//! options, its data-parallel phases as WGSL kernels (`shaders/level.wgsl` and the kernels of
+//! [`crate::price`], [`crate::segmin`], [`crate::scan`], [`crate::sort`]).
 //!
 //! The host sorts the nine lists once (by lo, by hi, and the flat references, per axis) and
-//! uploads them with the primitive boxes; each level then runs on the GPU:
-//! axes in use and candidate layout (scan) -> candidates -> counting (binary searches of the
-//! node's sorted segments) -> pricing -> best split (segmented min) -> decision (scans) ->
-//! partition (flags, scans, scatter) -> output nodes and leaf references. Per level the host
-//! reads back two small records: the candidate layout (to size the candidate arrays) and the
-//! decision's totals (the reference budget, and the next level's sizes). The finished tree
-//! comes down once.
+//! uploads them with the primitive boxes (and, with clipping, the triangles); each level then
+//! runs on the GPU: axes in use and candidate layout (scan) -> candidates -> counting (binary
+//! searches of the node's sorted segments) -> pricing -> best split (segmented min) ->
+//! decision (scans) -> sides of every reference, clipping straddlers -> partition of the
+//! reference table and the lists (flags, scans, scatter; clipped straddlers' entries sorted
+//! and merged by rank) -> output nodes and leaf references. Per level the host reads back two
+//! small records: the candidate layout (to size the candidate arrays) and the decision's
+//! totals (the reference budget, and the next level's sizes). The finished tree comes down
+//! once.
 
 use crate::kernel::{Arg, Kernel};
 use crate::price::{Layout, Price};
 use crate::scan::Scan;
 use crate::segmin::SegMin;
+use crate::sort::Sort;
 use crate::{Gpu, GpuError};
 use sahkd::build::{Algorithm, Axes, BuildOptions};
 use sahkd::geometry::triangle_bounds;
@@ -39,7 +42,9 @@ struct Params {
     next_nodes: u32,
     node_base: u32,
     ref_base: u32,
-    pad: u32,
+    clip: u32,
+    regen: u32,
+    pad: [u32; 3],
 }
 
 /// Phases timed on the host around their submissions (each waits for the GPU).
@@ -77,16 +82,13 @@ pub struct GpuBuild {
     pub report: GpuReport,
 }
 
-/// Whether `options` can run on the GPU: the level builder without clipping, for now.
+/// Whether `options` can run on the GPU: the level builder, with any of its options.
 pub fn check_options(options: &BuildOptions) -> Result<(), String> {
     if options.algorithm != Algorithm::Level {
         return Err(format!(
             "--device gpu runs the level builder only, not {:?}",
             options.algorithm
         ));
-    }
-    if options.clip {
-        return Err("--device gpu supports --clip off only for now".into());
     }
     Ok(())
 }
@@ -140,14 +142,19 @@ struct Kernels {
     count: Kernel,
     fill: Kernel,
     decide: Kernel,
+    sides: Kernel,
     classify: Kernel,
     emit_nodes: Kernel,
     emit_refs: Kernel,
+    scatter_refs: Kernel,
+    regen_emit: Kernel,
     next_level: Kernel,
     scatter: Kernel,
+    regen_place: Kernel,
     price: Price,
     segmin: SegMin,
     scan: Scan,
+    sort: Sort,
 }
 
 impl Kernels {
@@ -157,13 +164,18 @@ impl Kernels {
         let header = sections.next().unwrap_or_default();
         let mut kernels = std::collections::HashMap::new();
         for section in sections {
-            let (name, body) = section.split_once('\n').unwrap_or((section, ""));
-            let name = name.trim();
+            let (line, body) = section.split_once('\n').unwrap_or((section, ""));
+            let name = line.split_whitespace().next().unwrap_or_default();
+            let library = if line.contains("with clip.wgsl") {
+                crate::clip::CLIP_WGSL
+            } else {
+                ""
+            };
             // Binding 0 is the uniform; the others are storage, in order.
             let bindings = body.matches("@binding(").count();
             let mut args = vec![Arg::Uniform];
             args.resize(bindings, Arg::Write);
-            let module = gpu.module(name, &format!("{header}{body}"));
+            let module = gpu.module(name, &format!("{header}{library}{body}"));
             kernels.insert(name.to_string(), Kernel::new(gpu, &module, name, &args));
         }
         let mut take = |name: &str| kernels.remove(name).expect("kernel in level.wgsl");
@@ -173,14 +185,19 @@ impl Kernels {
             count: take("count"),
             fill: take("fill"),
             decide: take("decide"),
+            sides: take("sides"),
             classify: take("classify"),
             emit_nodes: take("emit_nodes"),
             emit_refs: take("emit_refs"),
+            scatter_refs: take("scatter_refs"),
+            regen_emit: take("regen_emit"),
             next_level: take("next_level"),
             scatter: take("scatter"),
+            regen_place: take("regen_place"),
             price: Price::new(gpu),
             segmin: SegMin::new(gpu),
             scan: Scan::new(gpu),
+            sort: Sort::new(gpu),
         }
     }
 }
@@ -246,11 +263,25 @@ pub fn build(
 
     let k = Kernels::new(gpu);
     let t = Instant::now();
-    let prims = gpu.upload("primitive boxes", &crate::price::box_words(&prim_boxes));
-    let mut entries_buf = [Grow::new("entries"), Grow::new("entries")];
-    let mut owner_buf = [Grow::new("owner"), Grow::new("owner")];
-    let mut starts_buf = [Grow::new("starts"), Grow::new("starts")];
-    let mut boxes_buf = [Grow::new("boxes"), Grow::new("boxes")];
+    // The corners are read only to clip straddlers.
+    let corners: Vec<f32> = if options.clip {
+        triangles
+            .iter()
+            .flat_map(|t| t.iter().flat_map(|v| v.0))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let corners = gpu.upload("triangles", &corners);
+    // Per level, double-buffered: the lists, their starts, the node boxes and the reference
+    // table (primitive, node, box).
+    let pair = |label| [Grow::new(label), Grow::new(label)];
+    let mut entries_buf = pair("entries");
+    let mut starts_buf = pair("starts");
+    let mut boxes_buf = pair("boxes");
+    let mut prim_buf = pair("ref prim");
+    let mut node_buf = pair("ref node");
+    let mut ref_box_buf = pair("ref boxes");
     let root_entries = entries.len();
     let write = |g: &mut Grow, data: &[u32]| -> Result<(), GpuError> {
         let buffer = g.ensure(gpu, data.len(), false)?;
@@ -258,14 +289,18 @@ pub fn build(
             .write_buffer(buffer, 0, bytemuck::cast_slice(data));
         Ok(())
     };
+    let bits = |boxes: &[Aabb]| -> Vec<u32> {
+        crate::price::box_words(boxes)
+            .iter()
+            .map(|f| f.to_bits())
+            .collect()
+    };
     write(&mut entries_buf[0], &entries)?;
-    write(&mut owner_buf[0], &vec![0u32; root_entries])?;
     write(&mut starts_buf[0], &starts)?;
-    let root_box: Vec<u32> = crate::price::box_words(&[bounds])
-        .iter()
-        .map(|f| f.to_bits())
-        .collect();
-    write(&mut boxes_buf[0], &root_box)?;
+    write(&mut boxes_buf[0], &bits(&[bounds]))?;
+    write(&mut prim_buf[0], &(0..n as u32).collect::<Vec<u32>>())?;
+    write(&mut node_buf[0], &vec![0u32; n])?;
+    write(&mut ref_box_buf[0], &bits(&prim_boxes))?;
     gpu.finish()?;
     report.upload_ms = ms(t);
 
@@ -287,12 +322,22 @@ pub fn build(
         "nodes out",
         "refs out",
         "totals",
+        "go left",
+        "go right",
+        "moved",
+        "regen scan",
+        "clipped boxes",
+        "new ids",
+        "records",
+        "parents",
     ];
     let mut g: Vec<Grow> = names.iter().map(|&name| Grow::new(name)).collect();
     let (uses, caps, cand_pos, cand_owner, counts, cand_cost, packed, best) =
         (0, 1, 2, 3, 4, 5, 6, 7);
     let (split, split_scan, leaf_scan, next_scan, lflags, rflags, nodes_out, refs_out, totals) =
         (8, 9, 10, 11, 12, 13, 14, 15, 16);
+    let (go_l, go_r, moved, regen_scan, clipped, new_id, records, parents) =
+        (17, 18, 19, 20, 21, 22, 23, 24);
     g[totals].ensure(gpu, 8, false)?;
 
     let mut p = Params {
@@ -303,6 +348,7 @@ pub fn build(
         leaf_size: cost.leaf_size,
         axes_all: (options.axes == Axes::All) as u32,
         intersection: cost.intersection,
+        clip: options.clip as u32,
         ..Params::default()
     };
     let mut cur = 0;
@@ -312,11 +358,13 @@ pub fn build(
         let refs = p.refs as usize;
         report.levels += 1;
         // Handles (shared references to the GPU buffers), so the other side can grow.
-        let [ent, own, sta, box_] = &[
+        let [ent, sta, box_, prim, node, ref_box] = &[
             entries_buf[cur].get().clone(),
-            owner_buf[cur].get().clone(),
             starts_buf[cur].get().clone(),
             boxes_buf[cur].get().clone(),
+            prim_buf[cur].get().clone(),
+            node_buf[cur].get().clone(),
+            ref_box_buf[cur].get().clone(),
         ];
         // Layout: axes in use, candidate capacities, their scan; the host reads the totals.
         let t = Instant::now();
@@ -364,11 +412,11 @@ pub fn build(
                 &mut enc,
                 &[
                     &params,
-                    &prims,
+                    ref_box,
                     box_,
                     sta,
                     ent,
-                    own,
+                    node,
                     g[uses].get(),
                     g[caps].get(),
                     g[cand_pos].get(),
@@ -387,7 +435,7 @@ pub fn build(
                 &mut enc,
                 &[
                     &params,
-                    &prims,
+                    ref_box,
                     sta,
                     ent,
                     g[cand_pos].get(),
@@ -443,7 +491,8 @@ pub fn build(
         gpu.finish()?;
         report.phase_ms[4] += ms(t);
 
-        // Decision, and the partition's flags, so that one read gives the host every total.
+        // Decision, the references' sides (clipping straddlers) and the lists' flags, so that
+        // one read gives the host every total.
         let t = Instant::now();
         for i in [split_scan, leaf_scan, next_scan] {
             g[i].ensure(gpu, nodes + 1, false)?;
@@ -451,6 +500,11 @@ pub fn build(
         g[split].ensure(gpu, 4 * nodes, false)?;
         g[lflags].ensure(gpu, e + 1, false)?;
         g[rflags].ensure(gpu, e + 1, false)?;
+        for i in [go_l, go_r, regen_scan] {
+            g[i].ensure(gpu, refs + 1, false)?;
+        }
+        g[moved].ensure(gpu, refs, false)?;
+        g[clipped].ensure(gpu, if options.clip { 12 * refs } else { 1 }, false)?;
         // Candidate buffers must exist to bind, even on a level without candidates.
         for i in [cand_pos, cand_cost, packed] {
             g[i].ensure(gpu, 1, false)?;
@@ -481,15 +535,37 @@ pub fn build(
         };
         let mut enc = gpu.encoder();
         decide(&mut enc, &params)?;
+        k.sides.dispatch(
+            gpu,
+            &mut enc,
+            &[
+                &params,
+                ref_box,
+                prim,
+                node,
+                &corners,
+                box_,
+                g[split].get(),
+                g[go_l].get(),
+                g[go_r].get(),
+                g[moved].get(),
+                g[regen_scan].get(),
+                g[clipped].get(),
+            ],
+            refs as u64 + 1,
+        );
+        for i in [go_l, go_r, regen_scan] {
+            k.scan.record(gpu, &mut enc, g[i].get(), refs + 1)?;
+        }
         k.classify.dispatch(
             gpu,
             &mut enc,
             &[
                 &params,
-                &prims,
                 ent,
-                own,
-                g[split].get(),
+                g[moved].get(),
+                g[go_l].get(),
+                g[go_r].get(),
                 g[lflags].get(),
                 g[rflags].get(),
             ],
@@ -503,6 +579,9 @@ pub fn build(
             (next_scan, nodes),
             (lflags, e),
             (rflags, e),
+            (go_l, refs),
+            (go_r, refs),
+            (regen_scan, refs),
         ]
         .into_iter()
         .enumerate()
@@ -516,13 +595,16 @@ pub fn build(
             );
         }
         gpu.submit(enc);
-        let sums = gpu.download::<u32>(g[totals].get(), 5)?;
+        let sums = gpu.download::<u32>(g[totals].get(), 8)?;
         report.round_trips += 1;
         let (mut splits, mut leaf_refs, next_refs) =
             (sums[0] as usize, sums[1] as usize, sums[2] as usize);
-        let next_entries = (sums[3] + sums[4]) as usize;
+        let regen = sums[7] as usize;
+        let next_entries = (sums[3] + sums[4]) as usize + regen;
+        let next_table = (sums[5] + sums[6]) as usize;
         // The reference budget, as the CPU checks it: the references already in leaves, this
-        // level's leaves and the next level's must fit, or the whole level becomes leaves.
+        // level's leaves and the next level's (before clipping, which only removes) must fit,
+        // or the whole level becomes leaves.
         if p.ref_base as usize + leaf_refs + next_refs > budget && splits > 0 {
             p.force_leaves = 1;
             let forced = gpu.uniform(&p);
@@ -562,8 +644,8 @@ pub fn build(
             &[
                 &params,
                 sta,
-                ent,
-                own,
+                prim,
+                node,
                 g[split].get(),
                 g[leaf_scan].get(),
                 g[refs_out].get(),
@@ -579,17 +661,65 @@ pub fn build(
             break;
         }
 
-        // Partition into the next level's lists, starts and boxes.
+        // Partition: the reference table, the clipped straddlers' records (sorted), then the
+        // next level's list starts, boxes and lists.
         let t = Instant::now();
         let next = 1 - cur;
         let next_nodes = 2 * splits;
         p.next_nodes = next_nodes as u32;
+        p.regen = regen as u32;
         let params = gpu.uniform(&p);
         entries_buf[next].ensure(gpu, next_entries, false)?;
-        owner_buf[next].ensure(gpu, next_entries, false)?;
         starts_buf[next].ensure(gpu, 9 * (next_nodes + 1), false)?;
         boxes_buf[next].ensure(gpu, 6 * next_nodes, false)?;
+        prim_buf[next].ensure(gpu, next_table, false)?;
+        node_buf[next].ensure(gpu, next_table, false)?;
+        ref_box_buf[next].ensure(gpu, 6 * next_table, false)?;
+        g[new_id].ensure(gpu, 2 * refs, false)?;
+        g[records].ensure(gpu, 4 * regen, false)?;
+        g[parents].ensure(gpu, next_nodes, false)?;
         let mut enc = gpu.encoder();
+        k.scatter_refs.dispatch(
+            gpu,
+            &mut enc,
+            &[
+                &params,
+                sta,
+                prim,
+                node,
+                ref_box,
+                g[moved].get(),
+                g[clipped].get(),
+                g[go_l].get(),
+                g[go_r].get(),
+                g[split_scan].get(),
+                prim_buf[next].get(),
+                node_buf[next].get(),
+                ref_box_buf[next].get(),
+                g[new_id].get(),
+            ],
+            refs as u64,
+        );
+        if regen > 0 {
+            k.regen_emit.dispatch(
+                gpu,
+                &mut enc,
+                &[
+                    &params,
+                    node,
+                    g[moved].get(),
+                    g[clipped].get(),
+                    g[go_l].get(),
+                    g[go_r].get(),
+                    g[regen_scan].get(),
+                    g[split_scan].get(),
+                    g[new_id].get(),
+                    g[records].get(),
+                ],
+                refs as u64,
+            );
+            k.sort.record(gpu, &mut enc, g[records].get(), regen)?;
+        }
         k.next_level.dispatch(
             gpu,
             &mut enc,
@@ -601,8 +731,10 @@ pub fn build(
                 g[split_scan].get(),
                 g[lflags].get(),
                 g[rflags].get(),
+                g[records].get(),
                 starts_buf[next].get(),
                 boxes_buf[next].get(),
+                g[parents].get(),
             ],
             9 * (nodes as u64 + 1),
         );
@@ -613,15 +745,35 @@ pub fn build(
                 &params,
                 sta,
                 ent,
-                own,
+                node,
+                ref_box,
                 g[split_scan].get(),
                 g[lflags].get(),
                 g[rflags].get(),
+                g[records].get(),
+                g[new_id].get(),
                 entries_buf[next].get(),
-                owner_buf[next].get(),
             ],
             e as u64,
         );
+        if regen > 0 {
+            k.regen_place.dispatch(
+                gpu,
+                &mut enc,
+                &[
+                    &params,
+                    sta,
+                    ent,
+                    ref_box,
+                    g[lflags].get(),
+                    g[rflags].get(),
+                    g[records].get(),
+                    g[parents].get(),
+                    entries_buf[next].get(),
+                ],
+                regen as u64,
+            );
+        }
         gpu.submit(enc);
         gpu.finish()?;
         report.phase_ms[6] += ms(t);
@@ -629,12 +781,13 @@ pub fn build(
         p = Params {
             nodes: next_nodes as u32,
             entries: next_entries as u32,
-            refs: next_refs as u32,
+            refs: next_table as u32,
             depth: p.depth + 1,
             node_base: node_end as u32,
             ref_base: ref_end as u32,
             force_leaves: 0,
             next_nodes: 0,
+            regen: 0,
             ..p
         };
         cur = next;

@@ -13,15 +13,20 @@
 //!   (flags, scan, scatter).
 //! - [`clip`]: triangles clipped to boxes in software f64, bit for bit the CPU's clip.
 //! - [`sort`]: records sorted by a 3-word key (bitonic; steps within a tile in workgroup
-//!   memory).
-//! - [`level`]: the level builder itself (clip off): the same tree as the CPU's.
+//!   memory): the clipped straddlers' list entries.
+//! - [`level`]: the level builder itself, every option (clipping, axes, counting): the same
+//!   tree as the CPU's.
 //!
-//! On the host stay: the one-off presort of the nine root lists before the upload (no GPU sort
-//! was written; it is 0.1 s of bunny's build, see BENCHMARKS.md), the reference-budget check
-//! (one comparison per level, on totals the host reads anyway to size the next level), and
-//! turning the downloaded node records into `Node`s. Counting is by binary searches in each
-//! node's sorted lists rather than the paper's space-tree walk or the CPU's event scan: the
-//! same L, R, P per candidate, with no per-node serial sweep.
+//! On the host stay: the one-off presort of the nine root lists before the upload (0.1-0.4 s
+//! of a build on the host; a software driver would sort slower, a real GPU was not available
+//! to measure), the reference-budget check (one comparison per level, on totals the host reads
+//! anyway to size the next level), and turning the downloaded node records into `Node`s.
+//! Scan counting is by binary searches in each node's sorted lists rather than the CPU's event
+//! scan: the same L, R, P per candidate, with no per-node serial sweep.
+//!
+//! Clipping: a straddler is clipped to both children on the GPU; its list entries are rebuilt
+//! from the clipped boxes, sorted on their own and merged into the children's segments by
+//! rank (binary searches), so no list is ever sorted whole again.
 //!
 //! Ties: the segmented min orders by (cost, position, index), and the candidate array holds
 //! the axes in order, so it picks what the CPU picks (cost, position, lower axis); candidates

@@ -85,6 +85,18 @@ fn option_sets() -> Vec<BuildOptions> {
             },
             ..paper
         },
+        // Perfect splits: straddlers clipped to the children (the library's default).
+        BuildOptions::default(),
+        BuildOptions::quality(),
+        BuildOptions {
+            clip: true,
+            counting: Counting::SpaceTree,
+            cost: CostModel {
+                max_duplication: 1.5,
+                ..CostModel::default()
+            },
+            ..paper
+        },
     ]
 }
 
@@ -121,20 +133,31 @@ fn scene(file: &str) -> Option<Mesh> {
     Some(Mesh::load(&path).unwrap())
 }
 
+/// Every scene with the defaults (clipping on), which is what `sahkd build MESH --device gpu`
+/// does; the smaller ones also without clipping (the paper's setting) and with all axes.
 #[test]
 fn real_meshes_give_the_cpu_tree() {
     let Some(gpu) = common::gpu() else { return };
     let paper = BuildOptions::paper();
-    for file in ["dragon_res4.ply", "bunny.ply"] {
+    for file in [
+        "dragon_res4.ply",
+        "dragon_res3.ply",
+        "bunny.ply",
+        "buddha_res3.ply",
+        "sponza_dabrovic.ply",
+        "dragon_res2.ply",
+        "dragon.ply",
+    ] {
         let Some(mesh) = scene(file) else { continue };
         let triangles = mesh.corner_triangles();
-        cpu_and_gpu_agree(&gpu, file, &triangles, &paper);
+        cpu_and_gpu_agree(&gpu, file, &triangles, &BuildOptions::default());
+        if triangles.len() < 100_000 {
+            cpu_and_gpu_agree(&gpu, file, &triangles, &paper);
+        }
         if file == "dragon_res4.ply" {
-            let all = BuildOptions {
-                axes: Axes::All,
-                ..paper
-            };
-            cpu_and_gpu_agree(&gpu, file, &triangles, &all);
+            for options in [BuildOptions::quality(), BuildOptions { axes: Axes::All, ..paper }] {
+                cpu_and_gpu_agree(&gpu, file, &triangles, &options);
+            }
         }
     }
 }
@@ -142,14 +165,11 @@ fn real_meshes_give_the_cpu_tree() {
 #[test]
 fn unsupported_options_and_empty_input() {
     let Some(gpu) = common::gpu() else { return };
-    let clip = BuildOptions {
-        clip: true,
-        ..BuildOptions::paper()
-    };
-    let err = sahkd_gpu::build(&gpu, grid_triangles(4, 10), &clip)
+    let sweep = BuildOptions::sweep();
+    let err = sahkd_gpu::build(&gpu, grid_triangles(4, 10), &sweep)
         .err()
         .unwrap();
-    assert!(err.to_string().contains("--clip off only"), "{err}");
+    assert!(err.to_string().contains("level builder only"), "{err}");
     let empty = sahkd_gpu::build(&gpu, Vec::new(), &BuildOptions::paper()).unwrap();
     assert_eq!(empty.tree.nodes().len(), 1);
 }
