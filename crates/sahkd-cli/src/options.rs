@@ -22,7 +22,7 @@ fn default_cost() -> CostModel {
 #[command(next_help_heading = "Builder options")]
 pub struct BuilderArgs {
     /// Where the level builder runs: the CPU, or a GPU through wgpu (Vulkan, Metal, DX12;
-    /// level builder with --clip off only)
+    /// level builder only)
     #[arg(long, value_enum, value_name = "DEVICE", default_value_t = DeviceArg::Cpu)]
     pub device: DeviceArg,
 

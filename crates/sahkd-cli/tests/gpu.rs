@@ -33,8 +33,14 @@ fn build_json(args: &[&str]) -> Option<Value> {
 
 #[test]
 fn gpu_build_gives_the_cpu_tree_and_reports_its_phases() {
-    for axes in ["longest", "all"] {
-        let common = ["spd:toys:3000", "--clip", "off", "--axes", axes];
+    // The defaults (clipping on), then the paper's clip off with either axes setting.
+    let cases: [&[&str]; 3] = [
+        &[],
+        &["--clip", "off", "--axes", "longest"],
+        &["--clip", "off", "--axes", "all"],
+    ];
+    for options in cases {
+        let common = [&["spd:toys:3000"][..], options].concat();
         let Some(gpu) = build_json(&[&common[..], &["--device", "gpu"]].concat()) else {
             return;
         };
@@ -51,7 +57,7 @@ fn gpu_build_gives_the_cpu_tree_and_reports_its_phases() {
             "sah_cost",
             "empty_leaves",
         ] {
-            assert_eq!(gpu[key], cpu[key], "{axes} axes: {key}");
+            assert_eq!(gpu[key], cpu[key], "{options:?}: {key}");
         }
         let report = &gpu["gpu"];
         assert!(!report["adapter"].as_str().unwrap().is_empty());
@@ -82,15 +88,15 @@ fn gpu_build_gives_the_cpu_tree_and_reports_its_phases() {
 
 #[test]
 fn gpu_mistakes_are_one_clear_line() {
-    // Clipping is not on the GPU yet: refused, not silently different.
+    // Only the level builder runs on the GPU: another is refused, not silently replaced.
     let out = sahkd(
-        &["build", "spd:toys:500", "--device", "gpu", "--clip", "on"],
+        &["build", "spd:toys:500", "--device", "gpu", "--algorithm", "sweep"],
         &[],
     );
     assert_eq!(out.status.code(), Some(1));
     assert_eq!(
         stderr(&out).trim(),
-        "error: --device gpu supports --clip off only for now"
+        "error: --device gpu runs the level builder only, not Sweep"
     );
     // No adapter on the only backend allowed (Metal does not exist on Linux).
     if cfg!(target_os = "linux") {
@@ -108,13 +114,13 @@ fn gpu_mistakes_are_one_clear_line() {
     }
 }
 
-/// `sahkd bench` of a small scene on `device` (level builder only, clip off, tiny pictures):
-/// results.json and table1.md, or `None` (skip) when no adapter exists outside CI.
-fn bench_level(device: &str, out: &std::path::Path) -> Option<(Value, String)> {
+/// `sahkd bench` of a small scene on `device` (level builder only, tiny pictures): results.json
+/// and table1.md, or `None` (skip) when no adapter exists outside CI.
+fn bench_level(device: &str, clip: &str, out: &std::path::Path) -> Option<(Value, String)> {
     let out_dir = out.to_str().unwrap();
     #[rustfmt::skip]
     let args = [
-        "bench", "--quiet", "spd:toys:500", "--device", device, "--clip", "off",
+        "bench", "--quiet", "spd:toys:500", "--device", device, "--clip", clip,
         "--algorithms", "level", "--threads", "1", "--repeat", "1",
         "--width", "32", "--height", "32", "--ao-size", "16", "--ao-samples", "2",
         "--out", out_dir,
@@ -133,14 +139,20 @@ fn bench_level(device: &str, out: &std::path::Path) -> Option<(Value, String)> {
 
 #[test]
 fn bench_on_the_gpu_gives_the_cpu_tree_and_reports_each_build() {
+    for clip in ["off", "on"] {
+        bench_on_the_gpu_with_clip(clip);
+    }
+}
+
+fn bench_on_the_gpu_with_clip(clip: &str) {
     let dir = tempfile::tempdir().unwrap();
-    let Some((gpu, gpu_md)) = bench_level("gpu", &dir.path().join("gpu")) else {
+    let Some((gpu, gpu_md)) = bench_level("gpu", clip, &dir.path().join("gpu")) else {
         return;
     };
-    let (cpu, cpu_md) = bench_level("cpu", &dir.path().join("cpu")).unwrap();
+    let (cpu, cpu_md) = bench_level("cpu", clip, &dir.path().join("cpu")).unwrap();
     assert_eq!(gpu["settings"]["device"], "gpu");
     assert_eq!(cpu["settings"]["device"], "cpu");
-    assert_eq!(gpu["settings"]["build_options"]["clip"], false);
+    assert_eq!(gpu["settings"]["build_options"]["clip"], clip == "on");
     let row = |r: &Value| r["scenes"][0]["builds"][0]["measured"].clone();
     let (g, c) = (row(&gpu), row(&cpu));
     assert!(c["gpu"].is_null());
@@ -183,22 +195,4 @@ fn bench_on_the_gpu_gives_the_cpu_tree_and_reports_each_build() {
     );
     assert!(cpu_md.contains("Device: every build on the CPU."));
     assert!(!cpu_md.contains("## GPU builds"));
-}
-
-#[test]
-fn bench_on_the_gpu_refuses_clipping_in_one_line() {
-    let dir = tempfile::tempdir().unwrap();
-    // bench clips by default, as the library does.
-    for clip in [&[][..], &["--clip", "on"]] {
-        let mut args = vec!["bench", "spd:toys:500", "--device", "gpu", "--out"];
-        args.push(dir.path().to_str().unwrap());
-        args.extend_from_slice(clip);
-        let out = sahkd(&args, &[]);
-        assert_eq!(out.status.code(), Some(1), "{args:?}");
-        assert_eq!(
-            stderr(&out).trim(),
-            "error: --device gpu supports --clip off only for now"
-        );
-        assert!(!dir.path().join("results.json").exists());
-    }
 }

@@ -84,8 +84,8 @@ pub struct Args {
           value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub ao_samples: u32,
 
-    /// Where the level builder's trees are built: the CPU, or a GPU through wgpu (needs
-    /// --clip off); the other builders and all rays run on the CPU either way
+    /// Where the level builder's trees are built: the CPU, or a GPU through wgpu; the other
+    /// builders and all rays run on the CPU either way
     #[arg(long, value_enum, value_name = "DEVICE", default_value_t = DeviceArg::Cpu)]
     pub device: DeviceArg,
 
