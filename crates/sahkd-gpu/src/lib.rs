@@ -13,6 +13,8 @@
 //!   (flags, scan, scatter).
 //! - [`sort`]: records sorted by a 3-word key (bitonic; steps within a tile in workgroup
 //!   memory).
+//! - [`space_tree`]: the paper's counting (space trees built by height, one stack-free walk
+//!   per candidate), the alternative to the level builder's binary searches.
 //! - [`level`]: the level builder itself (clip off): the same tree as the CPU's.
 //!
 //! On the host stay: the one-off presort of the nine root lists before the upload (no GPU sort
@@ -35,6 +37,7 @@ pub mod price;
 pub mod scan;
 pub mod segmin;
 pub mod sort;
+pub mod space_tree;
 
 pub use device::{Gpu, GpuError};
 pub use kernel::{Arg, Kernel};
