@@ -14,6 +14,8 @@
 //! - [`clip`]: triangles clipped to boxes in software f64, bit for bit the CPU's clip.
 //! - [`sort`]: records sorted by a 3-word key (bitonic; steps within a tile in workgroup
 //!   memory): the clipped straddlers' list entries.
+//! - [`space_tree`]: the paper's counting (space trees built by height, one stack-free walk
+//!   per candidate), `Counting::SpaceTree`; scan counting is the level builder's binary searches.
 //! - [`level`]: the level builder itself, every option (clipping, axes, counting): the same
 //!   tree as the CPU's.
 //!
@@ -42,6 +44,7 @@ pub mod price;
 pub mod scan;
 pub mod segmin;
 pub mod sort;
+pub mod space_tree;
 
 pub use device::{Gpu, GpuError};
 pub use kernel::{Arg, Kernel};
