@@ -90,7 +90,14 @@ fn gpu_build_gives_the_cpu_tree_and_reports_its_phases() {
 fn gpu_mistakes_are_one_clear_line() {
     // Only the level builder runs on the GPU: another is refused, not silently replaced.
     let out = sahkd(
-        &["build", "spd:toys:500", "--device", "gpu", "--algorithm", "sweep"],
+        &[
+            "build",
+            "spd:toys:500",
+            "--device",
+            "gpu",
+            "--algorithm",
+            "sweep",
+        ],
         &[],
     );
     assert_eq!(out.status.code(), Some(1));

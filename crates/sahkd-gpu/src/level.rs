@@ -5,7 +5,7 @@
 //! The host sorts the nine lists once (by lo, by hi, and the flat references, per axis) and
 //! uploads them with the primitive boxes (and, with clipping, the triangles); each level then
 //! runs on the GPU: axes in use and candidate layout (scan) -> candidates -> counting (binary
-//! searches of the node's sorted segments) -> pricing -> best split (segmented min) ->
+//! searches of the node's sorted segments, or the paper's space trees) -> pricing -> best split (segmented min) ->
 //! decision (scans) -> sides of every reference, clipping straddlers -> partition of the
 //! reference table and the lists (flags, scans, scatter; clipped straddlers' entries sorted
 //! and merged by rank) -> output nodes and leaf references. Per level the host reads back two
@@ -18,8 +18,9 @@ use crate::price::{Layout, Price};
 use crate::scan::Scan;
 use crate::segmin::SegMin;
 use crate::sort::Sort;
+use crate::space_tree::{self, SpaceTree};
 use crate::{Gpu, GpuError};
-use sahkd::build::{Algorithm, Axes, BuildOptions};
+use sahkd::build::{Algorithm, Axes, BuildOptions, Counting};
 use sahkd::geometry::triangle_bounds;
 use sahkd::{Aabb, KdTree, Node, Triangle};
 use std::time::Instant;
@@ -155,6 +156,7 @@ struct Kernels {
     segmin: SegMin,
     scan: Scan,
     sort: Sort,
+    space_tree: SpaceTree,
 }
 
 impl Kernels {
@@ -198,6 +200,7 @@ impl Kernels {
             segmin: SegMin::new(gpu),
             scan: Scan::new(gpu),
             sort: Sort::new(gpu),
+            space_tree: SpaceTree::new(gpu),
         }
     }
 }
@@ -330,6 +333,8 @@ pub fn build(
         "new ids",
         "records",
         "parents",
+        "space trees",
+        "walk stats",
     ];
     let mut g: Vec<Grow> = names.iter().map(|&name| Grow::new(name)).collect();
     let (uses, caps, cand_pos, cand_owner, counts, cand_cost, packed, best) =
@@ -338,6 +343,7 @@ pub fn build(
         (8, 9, 10, 11, 12, 13, 14, 15, 16);
     let (go_l, go_r, moved, regen_scan, clipped, new_id, records, parents) =
         (17, 18, 19, 20, 21, 22, 23, 24);
+    let (space_trees, walk_stats) = (25, 26);
     g[totals].ensure(gpu, 8, false)?;
 
     let mut p = Params {
@@ -428,22 +434,57 @@ pub fn build(
             gpu.finish()?;
             report.phase_ms[1] += ms(t);
 
+            // Counting: the paper's space trees and walks, or binary searches of the sorted
+            // segments (the same L, R, P as the CPU's event scan).
             let t = Instant::now();
             let mut enc = gpu.encoder();
-            k.count.dispatch(
-                gpu,
-                &mut enc,
-                &[
-                    &params,
-                    ref_box,
-                    sta,
-                    ent,
-                    g[cand_pos].get(),
-                    g[cand_owner].get(),
+            if options.counting == Counting::SpaceTree {
+                g[space_trees].ensure(gpu, 9 * refs, false)?;
+                g[walk_stats].ensure(gpu, space_tree::STATS_WORDS, false)?;
+                k.space_tree.record_build(
+                    gpu,
+                    &mut enc,
+                    nodes,
+                    refs,
+                    [ref_box, ent, sta],
+                    g[space_trees].get(),
+                )?;
+                let layout = Layout {
+                    n: c,
+                    first1: first1 as usize,
+                    first2: first2 as usize,
+                };
+                k.space_tree.record_count(
+                    gpu,
+                    &mut enc,
+                    nodes,
+                    refs,
+                    layout,
+                    [
+                        sta,
+                        g[space_trees].get(),
+                        g[cand_pos].get(),
+                        g[cand_owner].get(),
+                    ],
                     g[counts].get(),
-                ],
-                c as u64,
-            );
+                    g[walk_stats].get(),
+                );
+            } else {
+                k.count.dispatch(
+                    gpu,
+                    &mut enc,
+                    &[
+                        &params,
+                        ref_box,
+                        sta,
+                        ent,
+                        g[cand_pos].get(),
+                        g[cand_owner].get(),
+                        g[counts].get(),
+                    ],
+                    c as u64,
+                );
+            }
             gpu.submit(enc);
             gpu.finish()?;
             report.phase_ms[2] += ms(t);

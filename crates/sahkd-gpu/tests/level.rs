@@ -155,7 +155,15 @@ fn real_meshes_give_the_cpu_tree() {
             cpu_and_gpu_agree(&gpu, file, &triangles, &paper);
         }
         if file == "dragon_res4.ply" {
-            for options in [BuildOptions::quality(), BuildOptions { axes: Axes::All, ..paper }] {
+            let space_tree = BuildOptions {
+                counting: Counting::SpaceTree,
+                ..BuildOptions::default()
+            };
+            let all = BuildOptions {
+                axes: Axes::All,
+                ..paper
+            };
+            for options in [BuildOptions::quality(), all, space_tree] {
                 cpu_and_gpu_agree(&gpu, file, &triangles, &options);
             }
         }

@@ -78,7 +78,10 @@ pub fn clipped_bounds(tri: &Triangle, b: &Aabb) -> Aabb {
     }
     let out = Aabb::new(Vec3(lo.map(round_down)), Vec3(hi.map(round_up))).intersection(*b);
     // x + 0.0 is x, except that -0 becomes +0.
-    Aabb::new(Vec3(out.lo.0.map(|x| x + 0.0)), Vec3(out.hi.0.map(|x| x + 0.0)))
+    Aabb::new(
+        Vec3(out.lo.0.map(|x| x + 0.0)),
+        Vec3(out.hi.0.map(|x| x + 0.0)),
+    )
 }
 
 fn round_down(x: f64) -> f32 {
