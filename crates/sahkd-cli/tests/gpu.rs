@@ -75,6 +75,7 @@ fn gpu_build_gives_the_cpu_tree_and_reports_its_phases() {
                 "pricing",
                 "best split",
                 "decision",
+                "sides",
                 "partition",
                 "output"
             ]
@@ -181,7 +182,7 @@ fn bench_on_the_gpu_with_clip(clip: &str) {
         assert!(report[key].as_f64().unwrap() >= 0.0, "{key}");
     }
     let phases = report["phases_ms"].as_array().unwrap();
-    assert_eq!(phases.len(), 8);
+    assert_eq!(phases.len(), 9);
     assert!(phases.iter().all(|p| p[1].as_f64().unwrap() >= 0.0));
     let levels = report["levels"].as_u64().unwrap();
     assert_eq!(levels, g["depth"].as_u64().unwrap() + 1);
