@@ -5,11 +5,10 @@ mod common;
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
-use sahkd::clip::clipped_bounds;
+use sahkd::clip::{clipped_bounds, round_down, round_up};
 use sahkd::{Aabb, Mesh, Triangle, Vec3};
 use sahkd_gpu::clip::{clip_triangles, f64_ops};
 use sahkd_gpu::Gpu;
-use std::path::PathBuf;
 
 fn bits(b: &Aabb) -> [u32; 6] {
     [b.lo[0], b.lo[1], b.lo[2], b.hi[0], b.hi[1], b.hi[2]].map(f32::to_bits)
@@ -189,25 +188,6 @@ fn soft_f64_matches_the_cpu() {
     eprintln!("{} cases of every soft-f64 operation equal", cases.len());
 }
 
-// The CPU clip's outward roundings (private in sahkd::clip), restated.
-fn round_down(x: f64) -> f32 {
-    let f = x as f32;
-    if (f as f64) > x {
-        f.next_down()
-    } else {
-        f
-    }
-}
-
-fn round_up(x: f64) -> f32 {
-    let f = x as f32;
-    if (f as f64) < x {
-        f.next_up()
-    } else {
-        f
-    }
-}
-
 #[test]
 fn random_triangles_at_several_scales() {
     let Some(gpu) = common::gpu() else { return };
@@ -244,21 +224,6 @@ fn random_triangles_at_several_scales() {
         }
     }
     check(&gpu, "random, scales 1e-30, 1, 1e30", &tris, &boxes);
-}
-
-/// The shared scenes folder: `SAHKD_SCENES`, else `../shared/scenes` beside the checkout.
-fn load_scene(file: &str) -> Option<Mesh> {
-    let dir = std::env::var_os("SAHKD_SCENES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes")
-        });
-    let path = dir.join(file);
-    if !path.is_file() {
-        eprintln!("SKIPPED: {} is missing (set SAHKD_SCENES)", path.display());
-        return None;
-    }
-    Some(Mesh::load(&path).unwrap_or_else(|e| panic!("{file}: {e}")))
 }
 
 /// The real use: a triangle straddling a split plane is clipped to each child's box, the node
@@ -309,7 +274,7 @@ fn split_walks(mesh: &Mesh, seed: u64, count: usize, depth: usize) -> (Vec<Trian
 fn scene_triangles_clipped_to_split_children() {
     let Some(gpu) = common::gpu() else { return };
     for (file, seed) in [("bunny.ply", 1), ("sponza_dabrovic.ply", 2)] {
-        let Some(mesh) = load_scene(file) else {
+        let Some(mesh) = common::scene(file) else {
             continue;
         };
         let (tris, boxes) = split_walks(&mesh, seed, 6000, 8);

@@ -5,9 +5,8 @@ mod common;
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
-use sahkd::{Axes, BuildOptions, CostModel, Counting, Mesh, Triangle, Vec3};
+use sahkd::{Axes, BuildOptions, CostModel, Counting, Triangle, Vec3};
 use sahkd_gpu::Gpu;
-use std::path::PathBuf;
 
 fn cpu_and_gpu_agree(gpu: &Gpu, name: &str, triangles: &[Triangle], options: &BuildOptions) {
     let cpu = sahkd::build_triangles(triangles.to_vec(), options).unwrap();
@@ -119,20 +118,6 @@ fn generated_scenes_give_the_cpu_tree() {
     }
 }
 
-fn scene(file: &str) -> Option<Mesh> {
-    let dir = std::env::var_os("SAHKD_SCENES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes")
-        });
-    let path = dir.join(file);
-    if !path.is_file() {
-        eprintln!("SKIPPED: {} is missing", path.display());
-        return None;
-    }
-    Some(Mesh::load(&path).unwrap())
-}
-
 /// Every scene with the defaults (clipping on), which is what `sahkd build MESH --device gpu`
 /// does; the smaller ones also without clipping (the paper's setting) and with all axes.
 #[test]
@@ -148,7 +133,9 @@ fn real_meshes_give_the_cpu_tree() {
         "dragon_res2.ply",
         "dragon.ply",
     ] {
-        let Some(mesh) = scene(file) else { continue };
+        let Some(mesh) = common::scene(file) else {
+            continue;
+        };
         let triangles = mesh.corner_triangles();
         cpu_and_gpu_agree(&gpu, file, &triangles, &BuildOptions::default());
         if triangles.len() < 100_000 {

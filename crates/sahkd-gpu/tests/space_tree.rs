@@ -7,10 +7,9 @@ mod common;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use sahkd::geometry::triangle_bounds;
-use sahkd::{Aabb, BuildOptions, Counting, Mesh, Vec3};
+use sahkd::{Aabb, BuildOptions, Counting, Vec3};
 use sahkd_gpu::space_tree::{run_space_tree, HostRun, TreeNode};
 use sahkd_gpu::Gpu;
-use std::path::PathBuf;
 use std::time::Instant;
 
 /// A level as the kernels see it: boxes per reference id, nine lists, their starts.
@@ -295,20 +294,6 @@ fn identical_flat_and_empty_levels() {
     assert_eq!(got.stats, Default::default());
 }
 
-fn scene(file: &str) -> Option<Mesh> {
-    let dir = std::env::var_os("SAHKD_SCENES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes")
-        });
-    let path = dir.join(file);
-    if !path.is_file() {
-        eprintln!("SKIPPED: {} is missing", path.display());
-        return None;
-    }
-    Some(Mesh::load(&path).unwrap())
-}
-
 /// The bunny's root as the paper's level builder lays it out: the longest axis, every span's
 /// lo and hi as a candidate when strictly inside the scene box (the other axes' blocks empty;
 /// their trees are built and checked all the same). The counts against binary searches of
@@ -317,7 +302,7 @@ fn scene(file: &str) -> Option<Mesh> {
 #[test]
 fn bunny_root_counts_like_the_cpu() {
     let Some(gpu) = common::gpu() else { return };
-    let Some(mesh) = scene("bunny.ply") else {
+    let Some(mesh) = common::scene("bunny.ply") else {
         return;
     };
     let triangles = mesh.corner_triangles();

@@ -84,7 +84,8 @@ pub fn clipped_bounds(tri: &Triangle, b: &Aabb) -> Aabb {
     )
 }
 
-fn round_down(x: f64) -> f32 {
+/// The largest f32 at most `x` (the lower bound of a clipped box).
+pub fn round_down(x: f64) -> f32 {
     let f = x as f32;
     if (f as f64) > x {
         f.next_down()
@@ -93,7 +94,8 @@ fn round_down(x: f64) -> f32 {
     }
 }
 
-fn round_up(x: f64) -> f32 {
+/// The smallest f32 at least `x` (the upper bound of a clipped box).
+pub fn round_up(x: f64) -> f32 {
     let f = x as f32;
     if (f as f64) < x {
         f.next_up()
