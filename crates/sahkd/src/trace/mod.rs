@@ -8,10 +8,12 @@
 //! triangles against the whole remaining ray `[t_min, best]`, and pending nodes that start
 //! beyond the best hit are dropped. One walk ([`KdTree::for_each_hit`] and the private `walk`)
 //! serves closest hit, any hit and all hits; it runs over the tree's [`layout`] copy, made on
-//! the first query: nodes depth first, leaves' triangles stored in leaf order.
+//! the first query: nodes depth first, leaves' triangles stored in leaf order. The batch calls
+//! walk neighbouring rays four at a time (`packet`), with the same answers.
 
 pub mod brute;
 mod layout;
+mod packet;
 mod triangle;
 
 pub(crate) use layout::TraceLayout;
@@ -180,21 +182,29 @@ impl KdTree {
         });
     }
 
-    /// Closest hits of many rays on every core of the current rayon pool. The result of each
-    /// ray does not depend on the number of threads.
+    /// Closest hits of many rays on every core of the current rayon pool, each the answer of
+    /// [`intersect`](Self::intersect): neighbouring rays are walked together in packets
+    /// (`trace::packet`), which changes nothing in the results. The result of each ray does
+    /// not depend on the number of threads.
     pub fn intersect_batch(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
-        rays.par_iter()
-            .with_min_len(256)
-            .map(|r| self.intersect(r))
-            .collect()
+        let mut out = vec![None; rays.len()];
+        out.par_chunks_mut(packet::WIDTH)
+            .zip(rays.par_chunks(packet::WIDTH))
+            .with_min_len(64)
+            .for_each(|(out, rays)| self.closest_chunk(rays, out));
+        out
     }
 
-    /// Any-hit answers for many rays on every core of the current rayon pool.
+    /// Any-hit answers for many rays on every core of the current rayon pool, each the answer
+    /// of [`occluded`](Self::occluded), walked in packets like
+    /// [`intersect_batch`](Self::intersect_batch).
     pub fn occluded_batch(&self, rays: &[Ray]) -> Vec<bool> {
-        rays.par_iter()
-            .with_min_len(256)
-            .map(|r| self.occluded(r))
-            .collect()
+        let mut out = vec![false; rays.len()];
+        out.par_chunks_mut(packet::WIDTH)
+            .zip(rays.par_chunks(packet::WIDTH))
+            .with_min_len(64)
+            .for_each(|(out, rays)| self.any_chunk(rays, out));
+        out
     }
 
     #[inline(always)]

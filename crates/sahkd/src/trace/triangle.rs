@@ -73,14 +73,16 @@ impl ShearedRay {
         let mut eu = cx * by - cy * bx;
         let mut ev = ax * cy - ay * cx;
         let mut ew = bx * ay - by * ax;
-        if eu == 0.0 || ev == 0.0 || ew == 0.0 {
+        // `|` and `&` rather than `||` and `&&` in these tests: the same answers, one branch
+        // instead of a chain of hard-to-predict ones (measured faster).
+        if (eu == 0.0) | (ev == 0.0) | (ew == 0.0) {
             let f =
                 |p: f32, q: f32, r: f32, s: f32| (p as f64 * q as f64 - r as f64 * s as f64) as f32;
             eu = f(cx, by, cy, bx);
             ev = f(ax, cy, ay, cx);
             ew = f(bx, ay, by, ax);
         }
-        if (eu < 0.0 || ev < 0.0 || ew < 0.0) && (eu > 0.0 || ev > 0.0 || ew > 0.0) {
+        if ((eu < 0.0) | (ev < 0.0) | (ew < 0.0)) & ((eu > 0.0) | (ev > 0.0) | (ew > 0.0)) {
             return None;
         }
         let det = eu + ev + ew;
@@ -92,7 +94,7 @@ impl ShearedRay {
         let cz = self.sz * c[kz];
         let inv = 1.0 / det;
         let t = (eu * az + ev * bz + ew * cz) * inv;
-        if !(t >= t_min && t <= t_max) {
+        if !((t >= t_min) & (t <= t_max)) {
             return None;
         }
         Some(TriangleHit {

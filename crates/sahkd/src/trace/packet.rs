@@ -1,0 +1,267 @@
+//! Packets: `N` rays walked down the tree together, for the batch calls.
+//!
+//! Neighbouring rays of a batch (a camera's pixels in scanline order, the shadow rays of
+//! neighbouring hits) mostly cross the same nodes. Walking them together reads each node once
+//! for the packet, decides the packet's way with one branch instead of one per ray, and the
+//! plane distances of the lanes are computed side by side (the lane loops below are fixed
+//! length, which the compiler turns into SIMD).
+//!
+//! Every lane follows exactly the path and the intervals its single-ray walk ([`KdTree::walk`])
+//! would: a packet needs the same direction signs on every axis, so near and far children are
+//! the same for all lanes; a lane is active in a node only when its own walk reaches the node
+//! (the masks below) and the node starts within its own limit; its interval is cut at the
+//! plane exactly as the single walk cuts it. The lanes' leaves therefore come in the same
+//! order with the same triangles and limits, and the answers are those of the single-ray
+//! queries, bit for bit. Packets with mixed signs are traced one ray at a time.
+
+use super::{clip_to_box, Hit, Ray, ShearedRay};
+use crate::cost::MAX_DEPTH_CAP;
+use crate::geometry::Vec3;
+use crate::tree::KdTree;
+use std::mem::MaybeUninit;
+
+/// Rays per packet in the batch calls.
+pub(super) const WIDTH: usize = 4;
+
+/// A pending far child of a packet: the lanes that go there and their intervals.
+#[derive(Clone, Copy)]
+struct Pending<const N: usize> {
+    node: u32,
+    mask: u32,
+    t0: [f32; N],
+    t1: [f32; N],
+}
+
+/// Bit `i` set where `f(i)`.
+#[inline(always)]
+fn mask_of<const N: usize>(f: impl Fn(usize) -> bool) -> u32 {
+    let mut m = 0;
+    for i in 0..N {
+        m |= (f(i) as u32) << i;
+    }
+    m
+}
+
+/// Lanes where `a < b` (false for NaN, as `<` is).
+#[inline(always)]
+fn lt<const N: usize>(a: &[f32; N], b: &[f32; N]) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    if N == 4 {
+        use std::arch::x86_64::{_mm_cmplt_ps, _mm_loadu_ps, _mm_movemask_ps};
+        // SAFETY: SSE is part of x86_64, and both arrays hold 4 floats. Hand-written because
+        // the portable loop compiled to a byte mask reassembled bit by bit (measured).
+        return unsafe {
+            _mm_movemask_ps(_mm_cmplt_ps(
+                _mm_loadu_ps(a.as_ptr()),
+                _mm_loadu_ps(b.as_ptr()),
+            )) as u32
+        };
+    }
+    mask_of::<N>(|i| a[i] < b[i])
+}
+
+/// Lanes where `a <= b` (false for NaN, as `<=` is).
+#[inline(always)]
+fn le<const N: usize>(a: &[f32; N], b: &[f32; N]) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    if N == 4 {
+        use std::arch::x86_64::{_mm_cmple_ps, _mm_loadu_ps, _mm_movemask_ps};
+        // SAFETY: as in `lt`.
+        return unsafe {
+            _mm_movemask_ps(_mm_cmple_ps(
+                _mm_loadu_ps(a.as_ptr()),
+                _mm_loadu_ps(b.as_ptr()),
+            )) as u32
+        };
+    }
+    mask_of::<N>(|i| a[i] <= b[i])
+}
+
+/// True when all rays have the same sign bit in each direction component, so one near/far
+/// order serves the packet.
+#[inline(always)]
+pub(super) fn same_signs(rays: &[Ray]) -> bool {
+    let signs = |r: &Ray| {
+        (r.direction[0].is_sign_negative() as u32)
+            | (r.direction[1].is_sign_negative() as u32) << 1
+            | (r.direction[2].is_sign_negative() as u32) << 2
+    };
+    let first = signs(&rays[0]);
+    rays.iter().all(|r| signs(r) == first)
+}
+
+impl KdTree {
+    /// The walk of [`KdTree::walk`] for `N` rays with the same direction signs (see
+    /// [`same_signs`]). `visit(lane, hit, limit)` sees each hit of a lane's ray, may lower
+    /// that lane's limit and returns true to end that lane's walk.
+    #[inline(always)]
+    pub(super) fn walk_packet<const N: usize>(
+        &self,
+        rays: &[Ray; N],
+        mut visit: impl FnMut(usize, Hit, &mut f32) -> bool,
+    ) {
+        debug_assert!(N <= 32 && same_signs(rays));
+        if self.triangles.is_empty() {
+            return;
+        }
+        let layout = self.trace_layout();
+        let mut origin = [[0.0f32; N]; 3];
+        let mut inv = [[0.0f32; N]; 3];
+        let mut t0 = [0.0f32; N];
+        let mut t1 = [0.0f32; N];
+        let mut t_min = [0.0f32; N];
+        let mut limit = [0.0f32; N];
+        let mut mask = 0u32;
+        for (i, ray) in rays.iter().enumerate() {
+            let d = ray.direction;
+            let lane_inv = Vec3([1.0 / d[0], 1.0 / d[1], 1.0 / d[2]]);
+            for a in 0..3 {
+                origin[a][i] = ray.origin[a];
+                inv[a][i] = lane_inv[a];
+            }
+            t_min[i] = ray.t_min;
+            limit[i] = ray.t_max;
+            if ray.is_valid() {
+                if let Some((a, b)) = clip_to_box(self, ray, &lane_inv) {
+                    (t0[i], t1[i]) = (a, b);
+                    mask |= 1 << i;
+                }
+            }
+        }
+        if mask == 0 {
+            return;
+        }
+        let near_is_right = [0, 1, 2].map(|a| rays[0].direction[a].is_sign_negative() as u32);
+        let mut sheared: Option<[ShearedRay; N]> = None;
+        // Lanes whose walk has ended; when all of `live` are done, the packet is.
+        let live = mask;
+        let mut done = 0u32;
+        // Only entries below `top` are read, and each was written first.
+        let mut stack = [MaybeUninit::<Pending<N>>::uninit(); MAX_DEPTH_CAP as usize + 4];
+        let mut top = 0usize;
+        let mut node_index = 0u32;
+        loop {
+            // The lanes that reach this node and start within their limit.
+            let m = mask & !done & le(&t0, &limit);
+            if m != 0 {
+                let node = &layout.nodes[node_index as usize];
+                if !node.is_leaf() {
+                    let axis = node.axis();
+                    let left = node.left();
+                    let split = node.split();
+                    let (o, ia) = (&origin[axis], &inv[axis]);
+                    let tp: [f32; N] = std::array::from_fn(|i| (split - o[i]) * ia[i]);
+                    // As in the single walk: `tp > t1` near only, `tp < t0` far only, else
+                    // (NaN included) both.
+                    let near_m = m & !lt(&tp, &t0);
+                    let far_m = m & !lt(&t1, &tp);
+                    let near = left + near_is_right[axis];
+                    let far = left + 1 - near_is_right[axis];
+                    if far_m == 0 {
+                        node_index = near;
+                        mask = m;
+                    } else if near_m == 0 {
+                        node_index = far;
+                        mask = m;
+                    } else {
+                        // Lanes going to both sides are cut at the plane; near-only lanes
+                        // (`tp > t1`), far-only lanes (`tp < t0`) and NaN lanes keep their
+                        // interval.
+                        stack[top] = MaybeUninit::new(Pending {
+                            node: far,
+                            mask: far_m,
+                            t0: std::array::from_fn(|i| if tp[i] > t0[i] { tp[i] } else { t0[i] }),
+                            t1,
+                        });
+                        top += 1;
+                        t1 = std::array::from_fn(|i| if tp[i] < t1[i] { tp[i] } else { t1[i] });
+                        node_index = near;
+                        mask = near_m;
+                    }
+                    continue;
+                }
+                let records = layout.leaf(node);
+                if !records.is_empty() {
+                    let sheared = sheared
+                        .get_or_insert_with(|| std::array::from_fn(|i| ShearedRay::new(&rays[i])));
+                    let mut testing = m;
+                    for record in records {
+                        let mut bits = testing;
+                        while bits != 0 {
+                            let i = bits.trailing_zeros() as usize;
+                            bits &= bits - 1;
+                            if let Some(h) =
+                                sheared[i].intersect(&record.corners, t_min[i], limit[i])
+                            {
+                                let hit = Hit {
+                                    t: h.t,
+                                    prim: record.prim,
+                                    u: h.u,
+                                    v: h.v,
+                                };
+                                if visit(i, hit, &mut limit[i]) {
+                                    testing &= !(1 << i);
+                                    done |= 1 << i;
+                                }
+                            }
+                        }
+                        if testing == 0 {
+                            break;
+                        }
+                    }
+                    if done == live {
+                        return;
+                    }
+                }
+            }
+            if top == 0 {
+                return;
+            }
+            top -= 1;
+            // SAFETY: entries below `top` were all written by a push.
+            let p = unsafe { stack[top].assume_init() };
+            (node_index, mask, t0, t1) = (p.node, p.mask, p.t0, p.t1);
+        }
+    }
+
+    /// Closest hits of a chunk of at most [`WIDTH`] rays into `out`.
+    pub(super) fn closest_chunk(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        match <&[Ray; WIDTH]>::try_from(rays) {
+            Ok(packet) if same_signs(rays) => {
+                let mut best: [Option<Hit>; WIDTH] = [None; WIDTH];
+                self.walk_packet(packet, |i, hit, limit| {
+                    if hit.better_than(&best[i]) {
+                        *limit = hit.t;
+                        best[i] = Some(hit);
+                    }
+                    false
+                });
+                out.copy_from_slice(&best);
+            }
+            _ => {
+                for (o, r) in out.iter_mut().zip(rays) {
+                    *o = self.intersect(r);
+                }
+            }
+        }
+    }
+
+    /// Any-hit answers of a chunk of at most [`WIDTH`] rays into `out`.
+    pub(super) fn any_chunk(&self, rays: &[Ray], out: &mut [bool]) {
+        match <&[Ray; WIDTH]>::try_from(rays) {
+            Ok(packet) if same_signs(rays) => {
+                let mut found = [false; WIDTH];
+                self.walk_packet(packet, |i, _, _| {
+                    found[i] = true;
+                    true
+                });
+                out.copy_from_slice(&found);
+            }
+            _ => {
+                for (o, r) in out.iter_mut().zip(rays) {
+                    *o = self.occluded(r);
+                }
+            }
+        }
+    }
+}
