@@ -60,6 +60,8 @@ pub fn build(mesh: &Mesh, options: &BuildOptions) -> Result<(Build, GpuReport)> 
         report: sahkd::BuildReport {
             build_ms: r.total_ms,
             presort_ms: r.presort_ms,
+            // The GPU's working memory: its level buffers.
+            peak_working_bytes: r.device_bytes,
             ..Default::default()
         },
     };

@@ -77,6 +77,8 @@ pub struct GpuReport {
     /// Reads of GPU results by the host during the build (per level: layout, decision).
     pub round_trips: usize,
     pub total_ms: f64,
+    /// Bytes of the level buffers on the device at the end (they only grow, so the peak).
+    pub device_bytes: usize,
 }
 
 /// A tree built on the GPU and its report.
@@ -841,6 +843,20 @@ pub fn build(
         cur = next;
     }
 
+    report.device_bytes = 4
+        * (g.iter().map(|b| b.len).sum::<usize>()
+            + [
+                &entries_buf,
+                &starts_buf,
+                &boxes_buf,
+                &prim_buf,
+                &node_buf,
+                &ref_box_buf,
+            ]
+            .iter()
+            .flat_map(|pair| pair.iter().map(|b| b.len))
+            .sum::<usize>())
+        + corners.size() as usize;
     let t = Instant::now();
     let words = gpu.download::<u32>(g[nodes_out].get(), 3 * p.node_base as usize)?;
     let refs = gpu.download::<u32>(g[refs_out].get(), p.ref_base as usize)?;
