@@ -52,7 +52,8 @@ fn thread_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
     return (wid.y * nwg.x + wid.x) * 256u + lid;
 }
 
-// Integer key ordered like the float; -0 and +0 share one.
+// Integer key ordered like the float; -0 and +0 share one (as they compare equal), unlike the
+// key of segmin.wgsl, which only needs some order.
 fn order_key(bits: u32) -> u32 {
     if (bits == 0x80000000u) {
         return 0x80000000u;
@@ -492,8 +493,14 @@ fn scatter_refs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) 
         new_id[2u * r + side] = d;
         next_prim[d] = ref_prim[r];
         next_node[d] = 2u * split_scan[k] + side;
+        // (An if, not a select: a select would read both, and without clipping `clip_boxes`
+        // holds one word.)
         for (var c = 0u; c < 6u; c = c + 1u) {
-            next_boxes[6u * d + c] = select(ref_boxes[6u * r + c], clip_boxes[12u * r + 6u * side + c], moved[r] != 0u);
+            if (moved[r] != 0u) {
+                next_boxes[6u * d + c] = clip_boxes[12u * r + 6u * side + c];
+            } else {
+                next_boxes[6u * d + c] = ref_boxes[6u * r + c];
+            }
         }
     }
 }
