@@ -7,7 +7,8 @@
 //!
 //! Each tile runs in passes, so that each ray type is timed on its own and the plain
 //! (uncounted) queries are what is timed:
-//! 1. all primary rays of the tile (`KdTree::intersect`), timed;
+//! 1. all primary rays of the tile (`KdTree::intersect`, walked in packets of neighbouring
+//!    rays: the same answers), timed;
 //! 2. all occlusion rays the hits need (`KdTree::occluded`: shadow rays for diffuse shading,
 //!    AO rays for ambient occlusion; none for normal shading), timed;
 //! 3. shading (untimed);
@@ -373,7 +374,7 @@ impl<'a> Context<'a> {
 
         // Pass 1: primary rays.
         let start = Instant::now();
-        let hits: Vec<Option<Hit>> = primaries.iter().map(|r| self.tree.intersect(r)).collect();
+        let hits = self.tree.intersect_serial(&primaries);
         let primary_seconds = start.elapsed().as_secs_f64();
 
         // Occlusion rays of every hit; sample i owns occlusion[ranges[i]..ranges[i + 1]].
@@ -398,7 +399,7 @@ impl<'a> Context<'a> {
 
         // Pass 2: occlusion rays.
         let start = Instant::now();
-        let blocked: Vec<bool> = occlusion.iter().map(|r| self.tree.occluded(r)).collect();
+        let blocked = self.tree.occluded_serial(&occlusion);
         let occlusion_seconds = start.elapsed().as_secs_f64();
 
         let colours: Vec<[u8; 3]> = (0..pixels.len())

@@ -207,6 +207,31 @@ impl KdTree {
         out
     }
 
+    /// [`intersect_batch`](Self::intersect_batch) on the calling thread only, for callers
+    /// that already run in parallel (the renderer's tiles).
+    pub(crate) fn intersect_serial(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
+        let mut out = vec![None; rays.len()];
+        for (out, rays) in out
+            .chunks_mut(packet::WIDTH)
+            .zip(rays.chunks(packet::WIDTH))
+        {
+            self.closest_chunk(rays, out);
+        }
+        out
+    }
+
+    /// [`occluded_batch`](Self::occluded_batch) on the calling thread only.
+    pub(crate) fn occluded_serial(&self, rays: &[Ray]) -> Vec<bool> {
+        let mut out = vec![false; rays.len()];
+        for (out, rays) in out
+            .chunks_mut(packet::WIDTH)
+            .zip(rays.chunks(packet::WIDTH))
+        {
+            self.any_chunk(rays, out);
+        }
+        out
+    }
+
     #[inline(always)]
     fn closest(&self, ray: &Ray, counters: &mut impl TraceCounters) -> Option<Hit> {
         let mut best: Option<Hit> = None;
