@@ -23,15 +23,15 @@ pub enum Source {
 }
 
 impl Source {
-    /// A file when the argument names an existing file or ends in a mesh extension, a scene
-    /// spec otherwise.
+    /// A file when the argument names anything that exists (a directory or a device is then
+    /// refused as what it is) or ends in a mesh extension, a scene spec otherwise.
     pub fn resolve(arg: &str) -> Source {
         let path = Path::new(arg);
         let mesh_extension = path
             .extension()
             .and_then(|e| e.to_str())
             .is_some_and(|e| e.eq_ignore_ascii_case("ply") || e.eq_ignore_ascii_case("obj"));
-        if mesh_extension || path.is_file() {
+        if mesh_extension || path.exists() {
             Source::File(path.to_path_buf())
         } else {
             Source::Scene(arg.to_string())

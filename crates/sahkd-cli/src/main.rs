@@ -6,6 +6,7 @@ mod format;
 mod gpu;
 mod input;
 mod options;
+mod output;
 mod progress;
 mod rays;
 

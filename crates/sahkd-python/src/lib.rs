@@ -63,10 +63,13 @@ fn pool_of(threads: Option<usize>) -> PyResult<Arc<ThreadPool>> {
     pool::pool(threads).map_err(PyRuntimeError::new_err)
 }
 
+/// `threads=` under the library's rule (`sahkd::threads`): 1 up to the machine's cap.
 fn threads_arg(threads: Option<i64>) -> PyResult<Option<usize>> {
     match threads {
         None => Ok(None),
-        Some(n) if n >= 1 => Ok(Some(n as usize)),
+        Some(n) if n >= 1 => sahkd::threads::check(usize::try_from(n).unwrap_or(usize::MAX))
+            .map(Some)
+            .map_err(|e| PyValueError::new_err(format!("threads: {e}"))),
         Some(n) => Err(PyValueError::new_err(format!(
             "threads must be at least 1 (or None for every core), got {n}"
         ))),
@@ -238,7 +241,7 @@ impl PyKdTree {
             s.triangles,
             s.nodes,
             s.leaves,
-            options::algorithm_name(self.meta.options.algorithm)
+            self.meta.options.algorithm.name()
         )
     }
 
@@ -261,9 +264,9 @@ impl PyKdTree {
         d.set_item("bytes", s.bytes)?;
         d.set_item("build_ms", self.meta.build_ms)?;
         d.set_item("presort_ms", self.meta.presort_ms)?;
-        d.set_item("algorithm", options::algorithm_name(o.algorithm))?;
-        d.set_item("axes", options::axes_name(o.axes))?;
-        d.set_item("counting", options::counting_name(o.counting))?;
+        d.set_item("algorithm", o.algorithm.name())?;
+        d.set_item("axes", o.axes.name())?;
+        d.set_item("counting", o.counting.name())?;
         d.set_item("clip", o.clip)?;
         d.set_item("threads", self.meta.build_threads)?;
         Ok(d)
@@ -463,9 +466,13 @@ impl PyKdTree {
         PyBytes::new(py, &bytes)
     }
 
-    /// Writes the tree to a file, to be read back by sahkd.load.
+    /// Writes the tree to a file, to be read back by sahkd.load. The file is written whole
+    /// or not at all (a temporary beside it, synced, renamed over it).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        py.detach(|| std::fs::write(&path, format::to_bytes(&self.tree, &self.meta)))?;
+        py.detach(|| {
+            let bytes = format::to_bytes(&self.tree, &self.meta);
+            sahkd::output::write_atomically(&path, |file| std::io::Write::write_all(file, &bytes))
+        })?;
         Ok(())
     }
 

@@ -20,7 +20,9 @@ type ProcessPools = (u32, HashMap<usize, Arc<ThreadPool>>);
 
 /// The pool with `threads` workers (`None`: the default size) for this process.
 pub fn pool(threads: Option<usize>) -> Result<Arc<ThreadPool>, String> {
-    let key = threads.unwrap_or(0);
+    // `threads=` was checked against the rule; a tree saved on a larger machine may carry
+    // more, and runs here on this machine's cap (the answers do not depend on it).
+    let key = threads.map_or(0, |n| n.min(sahkd::threads::max_threads()));
     let pid = std::process::id();
     let mut guard = POOLS.lock().unwrap_or_else(|e| e.into_inner());
     if guard.as_ref().is_some_and(|(owner, _)| *owner != pid) {

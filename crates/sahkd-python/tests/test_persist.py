@@ -97,6 +97,20 @@ def test_forked_workers_do_not_hang_on_the_parents_threads():
     np.testing.assert_array_equal(built[0], expected_built)
 
 
+def test_save_replaces_a_file_whole_and_refuses_a_folder(tmp_path):
+    tree, _, _ = _tree_and_rays()
+    path = tmp_path / "scene.sahkd"
+    path.write_bytes(b"an older file")
+    tree.save(path)
+    assert path.read_bytes() == tree.to_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.sahkd"]
+    with pytest.raises(OSError):
+        tree.save(tmp_path)
+    with pytest.raises(OSError):
+        tree.save(tmp_path / "missing" / "scene.sahkd")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.sahkd"]
+
+
 def test_unreadable_files_raise_os_errors(tmp_path):
     with pytest.raises(FileNotFoundError):
         sahkd.load(tmp_path / "missing.sahkd")

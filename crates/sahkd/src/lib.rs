@@ -21,8 +21,10 @@ pub mod clip;
 pub mod cost;
 pub mod geometry;
 pub mod mesh;
+pub mod output;
 pub mod render;
 pub mod scenes;
+pub mod threads;
 pub mod trace;
 pub mod tree;
 

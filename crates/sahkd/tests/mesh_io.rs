@@ -266,14 +266,14 @@ fn ply_all_formats_give_the_same_mesh() {
 
 #[test]
 fn ply_hand_written_ascii() {
-    // CRLF in the header, comments, obj_info, a blank line, the vertex_index spelling and
-    // values spread over lines in ways a strict line reader would reject.
+    // CRLF in the header, comments, obj_info, a blank line and the vertex_index spelling.
+    // Each record on its own line (issue 14: a record split over lines is an error).
     let text = "ply\r\nformat ascii 1.0\r\ncomment made by hand\r\nobj_info nothing\r\n\r\n\
         element vertex 6\r\nproperty float x\r\nproperty float y\r\nproperty float z\r\n\
         property uchar red\r\n\
         element face 6\r\nproperty list uchar int vertex_index\r\nend_header\r\n\
         0 0 0 1\n2 0 0 1\n2 3 0 1\n0 3 0 1\n-1 1 1.5 1\n4 -2 0.25 1\n\
-        3 0 1 2\n4 0 2 3 4\n5 5 4 3 2 1\n2 1 2\n0\n3 3 4\n5\n";
+        3 0 1 2\n4 0 2 3 4\n5 5 4 3 2 1\n2 1 2\n0\n3 3 4 5\n";
     assert_eq!(parse(text.as_bytes()), Ok(expected()));
 }
 
@@ -834,14 +834,20 @@ fn load_picks_the_reader_and_names_the_file() {
         write_ply(Format::Little, &scanner_layout("int", &faces)),
     )
     .unwrap();
-    assert!(matches!(
-        Mesh::load(&out_of_range),
-        Err(MeshError::IndexOutOfRange {
-            face: 0,
-            index: 6,
-            vertices: 6
-        })
-    ));
+    match Mesh::load(&out_of_range) {
+        Err(MeshError::InFile { path, error }) => {
+            assert!(path.ends_with("range.ply"), "{path}");
+            assert!(matches!(
+                *error,
+                MeshError::IndexOutOfRange {
+                    face: 0,
+                    index: 6,
+                    vertices: 6
+                }
+            ));
+        }
+        other => panic!("expected the file and the index out of range, got {other:?}"),
+    }
 
     let broken = dir.join("broken.ply");
     std::fs::write(&broken, b"ply\nformat ascii 1.0\n").unwrap();

@@ -42,6 +42,11 @@ pub enum MeshError {
         index: u32,
         vertices: usize,
     },
+    /// A mesh read from a file failed validation: the file, and what is wrong.
+    InFile {
+        path: String,
+        error: Box<MeshError>,
+    },
 }
 
 impl fmt::Display for MeshError {
@@ -53,11 +58,21 @@ impl fmt::Display for MeshError {
                 f,
                 "{path}: unknown mesh format (expected a .ply or .obj file)"
             ),
-            MeshError::NonFiniteVertex { vertex, value } => write!(
-                f,
-                "vertex {vertex} has a non-finite coordinate ({}, {}, {})",
-                value[0], value[1], value[2]
-            ),
+            MeshError::NonFiniteVertex { vertex, value } => {
+                write!(
+                    f,
+                    "vertex {vertex} has a non-finite coordinate ({}, {}, {})",
+                    value[0], value[1], value[2]
+                )?;
+                if value.iter().any(|c| c.is_infinite()) {
+                    write!(
+                        f,
+                        ": written as infinite, or beyond the float32 range (magnitudes up to {:e})",
+                        f32::MAX
+                    )?;
+                }
+                Ok(())
+            }
             MeshError::IndexOutOfRange {
                 face,
                 index,
@@ -66,17 +81,55 @@ impl fmt::Display for MeshError {
                 f,
                 "face {face} refers to vertex {index}, but the mesh has only {vertices} vertices"
             ),
+            MeshError::InFile { path, error } => write!(f, "{path}: {error}"),
         }
     }
 }
 
 impl std::error::Error for MeshError {}
 
+/// What `path` is when it exists but is not a file that can hold a mesh: "a directory",
+/// "a character device" (such as /dev/null). `None` for files and pipes, and for paths
+/// that do not exist (reading them reports that).
+fn not_a_file(path: &Path) -> Option<&'static str> {
+    let kind = std::fs::metadata(path).ok()?.file_type();
+    if kind.is_file() {
+        return None;
+    }
+    if kind.is_dir() {
+        return Some("a directory");
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if kind.is_fifo() {
+            return None;
+        }
+        if kind.is_char_device() {
+            return Some("a character device");
+        }
+        if kind.is_block_device() {
+            return Some("a block device");
+        }
+        if kind.is_socket() {
+            return Some("a socket");
+        }
+    }
+    Some("neither a file nor a directory")
+}
+
 impl Mesh {
     /// Reads a `.ply` (ASCII or binary, either byte order) or `.obj` file and validates it.
+    /// Every error names the file.
     pub fn load(path: impl AsRef<Path>) -> Result<Mesh, MeshError> {
         let path = path.as_ref();
         let name = path.display().to_string();
+        if let Some(what) = not_a_file(path) {
+            return Err(MeshError::Parse {
+                path: name,
+                message: format!("is {what}, not a mesh file"),
+            });
+        }
         let bytes = std::fs::read(path).map_err(|source| MeshError::Io {
             path: name.clone(),
             source,
@@ -95,7 +148,10 @@ impl Mesh {
             path: name.clone(),
             message,
         })?;
-        mesh.validate()?;
+        mesh.validate().map_err(|error| MeshError::InFile {
+            path: name,
+            error: Box::new(error),
+        })?;
         Ok(mesh)
     }
 
@@ -174,5 +230,46 @@ impl Mesh {
                 n == [0.0, 0.0, 0.0]
             })
             .count()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str, contents: &str) -> std::path::PathBuf {
+        let path = std::env::temp_dir().join(format!("sahkd-mesh-{}-{name}", std::process::id()));
+        std::fs::write(&path, contents).unwrap();
+        path
+    }
+
+    #[test]
+    fn errors_about_a_files_contents_name_the_file() {
+        let path = scratch("nan.obj", "v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n");
+        let e = Mesh::load(&path).unwrap_err().to_string();
+        std::fs::remove_file(&path).unwrap();
+        assert!(
+            e.starts_with(&format!("{}: vertex 1", path.display())),
+            "{e}"
+        );
+        let path = scratch("big.obj", "v 0 0 0\nv 1 1e39 0\nv 0 1 0\nf 1 2 3\n");
+        let e = Mesh::load(&path).unwrap_err().to_string();
+        std::fs::remove_file(&path).unwrap();
+        assert!(
+            e.starts_with(&format!("{}: vertex 1", path.display())),
+            "{e}"
+        );
+        assert!(e.contains("beyond the float32 range"), "{e}");
+    }
+
+    #[test]
+    fn directories_and_devices_are_not_mesh_files() {
+        let dir = std::env::temp_dir();
+        let e = Mesh::load(&dir).unwrap_err().to_string();
+        assert!(e.ends_with("is a directory, not a mesh file"), "{e}");
+        if Path::new("/dev/null").exists() {
+            let e = Mesh::load("/dev/null").unwrap_err().to_string();
+            assert_eq!(e, "/dev/null: is a character device, not a mesh file");
+        }
     }
 }

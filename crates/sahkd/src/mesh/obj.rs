@@ -7,7 +7,80 @@
 use super::Mesh;
 use std::io::{BufRead, Read};
 
+/// The statements of the OBJ format (geometry, grouping, display and free-form); a file with
+/// text but none of them is not an OBJ file. `tobj` skips unknown lines without a word.
+const STATEMENTS: &[&str] = &[
+    "v",
+    "vt",
+    "vn",
+    "vp",
+    "f",
+    "l",
+    "p",
+    "o",
+    "g",
+    "s",
+    "mg",
+    "usemtl",
+    "mtllib",
+    "cstype",
+    "deg",
+    "bmat",
+    "step",
+    "curv",
+    "curv2",
+    "surf",
+    "parm",
+    "trim",
+    "hole",
+    "scrv",
+    "sp",
+    "end",
+    "con",
+    "lod",
+    "maplib",
+    "usemap",
+    "bevel",
+    "c_interp",
+    "d_interp",
+    "shadow_obj",
+    "trace_obj",
+    "ctech",
+    "stech",
+    "call",
+    "csh",
+];
+
+/// Fails for text with no OBJ statement (comments and blank lines alone are an empty mesh),
+/// naming its first line.
+fn check_is_obj(bytes: &[u8]) -> Result<(), String> {
+    let mut first = None;
+    for (number, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let text = line.trim_ascii();
+        if text.is_empty() || text.starts_with(b"#") {
+            continue;
+        }
+        let keyword = text.split(u8::is_ascii_whitespace).next().unwrap_or(text);
+        if STATEMENTS.iter().any(|s| s.as_bytes() == keyword) {
+            return Ok(());
+        }
+        first.get_or_insert((number + 1, text));
+    }
+    match first {
+        None => Ok(()),
+        Some((number, text)) => {
+            let text = String::from_utf8_lossy(text);
+            let shown: String = text.chars().take(40).collect();
+            let more = if shown.len() < text.len() { "..." } else { "" };
+            Err(format!(
+                "not an OBJ file: no OBJ statement (v, f, o, g, ...) in it; line {number} reads '{shown}{more}'"
+            ))
+        }
+    }
+}
+
 pub(super) fn parse(bytes: &[u8]) -> Result<Mesh, String> {
+    check_is_obj(bytes)?;
     // The update keeps this compiling when optional tobj features add fields.
     #[allow(clippy::needless_update)]
     let options = tobj::LoadOptions {
@@ -207,5 +280,24 @@ impl BufRead for Lines<'_> {
         } else {
             self.consumed += amount;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn text_without_an_obj_statement_is_not_a_mesh() {
+        let e = parse(b"hello world\nthis is not a mesh\n").unwrap_err();
+        assert!(
+            e.starts_with("not an OBJ file") && e.contains("line 1 reads 'hello world'"),
+            "{e}"
+        );
+        // Empty files and comments alone are an empty mesh; a statement among junk is OBJ.
+        assert_eq!(parse(b"").unwrap(), Mesh::default());
+        assert_eq!(parse(b"# nothing\n\n").unwrap(), Mesh::default());
+        let mesh = parse(b"junk\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        assert_eq!(mesh.triangles.len(), 1);
     }
 }

@@ -437,6 +437,16 @@ fn read_binary<O: ByteOrder>(header: &Header, body: &[u8], mesh: &mut Mesh) -> R
             skip_binary::<O>(element, rest)?
         };
     }
+    // Bytes after the last element mean the header does not describe the file; a final
+    // line break, as some writers add, is not data.
+    let rest = &body[pos..];
+    if !rest.trim_ascii().is_empty() {
+        return Err(format!(
+            "{} bytes of data after the last element: the header declares {}",
+            rest.len(),
+            declared(header)
+        ));
+    }
     Ok(())
 }
 
@@ -503,8 +513,39 @@ fn read_binary_vertices<O: ByteOrder>(
                 .chunks_exact(stride)
                 .map(|r| [0, 1, 2].map(|axis| real_at::<O>(&r[offsets[axis]..], types[axis]))),
         );
+        if types.contains(&Scalar::F64) {
+            check_doubles::<O>(element, xyz, &offsets, records, stride, vertices)?;
+        }
     }
     Ok(records.len())
+}
+
+/// Fails on the first double coordinate that became infinite as f32 though it is finite:
+/// run only on files with double coordinates, after the fast conversion.
+fn check_doubles<O: ByteOrder>(
+    element: &Element,
+    xyz: [usize; 3],
+    offsets: &[usize; 3],
+    records: &[u8],
+    stride: usize,
+    vertices: &[[f32; 3]],
+) -> Result<(), String> {
+    let first = vertices.len() - records.len() / stride;
+    for (done, vertex) in vertices[first..].iter().enumerate() {
+        for axis in 0..3 {
+            if vertex[axis].is_infinite() {
+                let record = &records[done * stride..];
+                if let Kind::Scalar(Scalar::F64) = element.properties[xyz[axis]].kind {
+                    let value = f64::from_bits(O::u64(take(&record[offsets[axis]..])));
+                    to_f32(value).map_err(|message| {
+                        let name = &element.properties[xyz[axis]].name;
+                        format!("vertex {done} coordinate '{name}' {message}")
+                    })?;
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Reads the face element; returns the number of bytes it occupies.
@@ -639,34 +680,87 @@ fn negative_count(element: &Element, done: u64, property: &Property, n: i64) -> 
 // ---------------------------------------------------------------------------------------
 // ASCII
 
-/// Whitespace-separated tokens with the line each one is on.
-struct Tokens<'a> {
+/// The body's non-blank lines with their numbers in the whole file: one record per line.
+struct Lines<'a> {
     data: &'a [u8],
     pos: usize,
-    /// Line number (in the whole file) of the byte at `pos`.
+    /// Line number (in the whole file) of the line starting at `pos`.
     line: usize,
 }
 
-impl<'a> Tokens<'a> {
+impl<'a> Lines<'a> {
+    /// The next line that holds anything but whitespace, and its number.
     fn next(&mut self) -> Option<(&'a [u8], usize)> {
-        while let Some(&b) = self.data.get(self.pos) {
-            if !b.is_ascii_whitespace() {
-                break;
+        while self.pos < self.data.len() {
+            let rest = &self.data[self.pos..];
+            let len = rest.iter().position(|&b| b == b'\n').unwrap_or(rest.len());
+            let (text, number) = (&rest[..len], self.line);
+            self.pos += (len + 1).min(rest.len());
+            self.line += 1;
+            if !text.trim_ascii().is_empty() {
+                return Some((text, number));
             }
-            if b == b'\n' {
-                self.line += 1;
+        }
+        None
+    }
+
+    /// Whether only whitespace is left.
+    fn at_end(&self) -> bool {
+        self.data[self.pos..].trim_ascii().is_empty()
+    }
+}
+
+/// The values of one record's line, counted so that a short or long line is named.
+struct Values<'a, 'e> {
+    words: std::slice::Split<'a, u8, fn(&u8) -> bool>,
+    line: usize,
+    element: &'e Element,
+    record: u64,
+    /// The line was the file's last.
+    last: bool,
+    read: usize,
+}
+
+impl<'a> Values<'a, '_> {
+    fn next(&mut self) -> Result<&'a [u8], String> {
+        match self.words.by_ref().find(|w| !w.is_empty()) {
+            Some(word) => {
+                self.read += 1;
+                Ok(word)
             }
-            self.pos += 1;
+            None => Err(self.short()),
         }
-        let start = self.pos;
-        while self
-            .data
-            .get(self.pos)
-            .is_some_and(|b| !b.is_ascii_whitespace())
-        {
-            self.pos += 1;
+    }
+
+    fn short(&self) -> String {
+        let mut message = format!(
+            "line {}: {} {} has only {} value{}, fewer than the header declares",
+            self.line,
+            self.element.name,
+            self.record,
+            self.read,
+            if self.read == 1 { "" } else { "s" }
+        );
+        if self.last {
+            message += &format!("; {}", self.element.truncated(self.record));
         }
-        (self.pos > start).then(|| (&self.data[start..self.pos], self.line))
+        message
+    }
+
+    /// Fails when the line holds more values than the record declared.
+    fn finish(mut self) -> Result<(), String> {
+        let extra = self.words.by_ref().filter(|w| !w.is_empty()).count();
+        if extra == 0 {
+            return Ok(());
+        }
+        Err(format!(
+            "line {}: {} {} has {} values, more than the {} the header declares",
+            self.line,
+            self.element.name,
+            self.record,
+            self.read + extra,
+            self.read
+        ))
     }
 }
 
@@ -713,15 +807,41 @@ fn ascii_real(
         return Ok(ascii_int(token, line, t, what)? as f32);
     }
     let text = std::str::from_utf8(token).ok();
+    let not_a_number = || format!("line {line}: {} '{}' is not a number", what(), show(token));
     let value = match t {
+        // Parsed as f32 directly: through f64 it could round twice.
         Scalar::F32 => text.and_then(|s| s.parse::<f32>().ok()),
-        _ => text.and_then(|s| s.parse::<f64>().ok()).map(|v| v as f32),
+        _ => None,
     };
-    value.ok_or_else(|| format!("line {line}: {} '{}' is not a number", what(), show(token)))
+    match value {
+        Some(v) if v.is_finite() => Ok(v),
+        // Infinite or double: the f64 value tells a written `inf` from one beyond float32.
+        _ => {
+            let wide = text
+                .and_then(|s| s.parse::<f64>().ok())
+                .ok_or_else(not_a_number)?;
+            to_f32(wide).map_err(|message| format!("line {line}: {} {message}", what()))
+        }
+    }
 }
 
+/// A coordinate as f32, or why it has none: a finite value beyond float32's range becomes
+/// infinite, which is an error in its own words rather than a later "non-finite vertex".
+fn to_f32(value: f64) -> Result<f32, String> {
+    let narrow = value as f32;
+    if narrow.is_infinite() && value.is_finite() {
+        return Err(format!(
+            "{value:e} is beyond the float32 range (magnitudes up to {:e})",
+            f32::MAX
+        ));
+    }
+    Ok(narrow)
+}
+
+/// Reads the ASCII body one line per record, each line holding exactly the values the
+/// header declares for it, and nothing after the last element.
 fn read_ascii(header: &Header, body: &[u8], mesh: &mut Mesh) -> Result<(), String> {
-    let mut tokens = Tokens {
+    let mut lines = Lines {
         data: body,
         pos: 0,
         line: header.lines + 1,
@@ -742,9 +862,19 @@ fn read_ascii(header: &Header, body: &[u8], mesh: &mut Mesh) -> Result<(), Strin
             continue;
         }
         for done in 0..element.count {
+            let (text, line) = lines.next().ok_or_else(|| element.truncated(done))?;
+            let is_space: fn(&u8) -> bool = u8::is_ascii_whitespace;
+            let mut values = Values {
+                words: text.split(is_space),
+                line,
+                element,
+                record: done,
+                last: lines.at_end(),
+                read: 0,
+            };
             let mut position = [0f32; 3];
             for (prop, property) in element.properties.iter().enumerate() {
-                let (token, line) = tokens.next().ok_or_else(|| element.truncated(done))?;
+                let token = values.next()?;
                 match property.kind {
                     Kind::Scalar(t) => {
                         if !is_vertex {
@@ -767,8 +897,7 @@ fn read_ascii(header: &Header, body: &[u8], mesh: &mut Mesh) -> Result<(), Strin
                         let read = is_face && prop == roles.indices;
                         polygon.clear();
                         for _ in 0..n {
-                            let (token, line) =
-                                tokens.next().ok_or_else(|| element.truncated(done))?;
+                            let token = values.next()?;
                             if read {
                                 let value = ascii_int(token, line, item, || {
                                     format!("face {done} vertex index")
@@ -786,10 +915,122 @@ fn read_ascii(header: &Header, body: &[u8], mesh: &mut Mesh) -> Result<(), Strin
                     }
                 }
             }
+            values.finish()?;
             if is_vertex {
                 mesh.vertices.push(position);
             }
         }
     }
+    if let Some((text, line)) = lines.next() {
+        return Err(format!(
+            "line {line}: data after the last element ('{}'): the header declares {}",
+            shorten(text),
+            declared(header)
+        ));
+    }
     Ok(())
+}
+
+/// "3 vertices, 1 face": what the header declares, for messages about extra data.
+fn declared(header: &Header) -> String {
+    let parts: Vec<String> = header
+        .elements
+        .iter()
+        .map(|e| format!("{} {}", e.count, e.plural()))
+        .collect();
+    parts.join(", ")
+}
+
+/// A line of the file, cut to a length that fits a message.
+fn shorten(text: &[u8]) -> String {
+    let text = String::from_utf8_lossy(text);
+    let text = text.trim();
+    match text.char_indices().nth(40) {
+        Some((cut, _)) => format!("{}...", &text[..cut]),
+        None => text.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const HEAD: &str = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n\
+                        property float y\nproperty float z\nelement face 1\n\
+                        property list uchar int vertex_indices\nend_header\n";
+
+    fn error(body: &str) -> String {
+        parse(format!("{HEAD}{body}").as_bytes()).unwrap_err()
+    }
+
+    #[test]
+    fn ascii_records_are_read_one_per_line() {
+        // Records split or joined across lines would shift every later value.
+        let mesh = parse(format!("{HEAD}0 0 0\n\n1 0 0\r\n0 1 0\n3 0 1 2\n\n").as_bytes());
+        assert_eq!(mesh.unwrap().triangles, vec![[0, 1, 2]]);
+        let e = error("0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+        assert!(e.starts_with("line 10: vertex 0 has only 2 values"), "{e}");
+        let e = error("0 0 0 1\n1 0 0\n0 1 0\n3 0 1 2\n");
+        assert!(
+            e.starts_with("line 10: vertex 0 has 4 values, more than the 3"),
+            "{e}"
+        );
+        let e = error("0 0 0\n1 0 0\n0 1 0\n3 0 1\n");
+        assert!(e.contains("line 13: face 0 has only 3 values"), "{e}");
+        assert!(e.contains("file ends after 0 of 1 faces"), "{e}");
+        let e = error("0 0 0\n1 0 0\n0 1 0\n3 0 1 2 5\n");
+        assert!(
+            e.contains("line 13: face 0 has 5 values, more than the 4"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn data_after_the_last_element_is_an_error() {
+        let e = error("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 2\n");
+        assert!(
+            e.contains("line 14: data after the last element ('3 0 1 2')")
+                && e.contains("3 vertices, 1 faces"),
+            "{e}"
+        );
+        let binary = "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n\
+                      property float y\nproperty float z\nelement face 0\n\
+                      property list uchar int vertex_indices\nend_header\n";
+        let mut bytes = binary.as_bytes().to_vec();
+        bytes.extend_from_slice(&[0; 12]);
+        assert!(parse(&bytes).is_ok());
+        bytes.push(b'\n');
+        assert!(parse(&bytes).is_ok(), "a final line break is not data");
+        bytes.extend_from_slice(&[7; 5]);
+        let e = parse(&bytes).unwrap_err();
+        assert!(
+            e.starts_with("6 bytes of data after the last element"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn values_beyond_float32_say_so() {
+        let e = error("0 0 0\n1 -4e38 0\n0 1 0\n3 0 1 2\n");
+        assert!(
+            e.starts_with("line 11: vertex 1 coordinate 'y' -4e38 is beyond the float32 range"),
+            "{e}"
+        );
+        // A written infinity is read as one (and refused later by validation, as such).
+        let mesh = parse(format!("{HEAD}0 0 0\n1 inf 0\n0 1 0\n3 0 1 2\n").as_bytes());
+        assert!(mesh.unwrap().vertices[1][1].is_infinite());
+        // Binary doubles too.
+        let mut bytes = b"ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty double x\n\
+                          property double y\nproperty double z\nelement face 0\n\
+                          property list uchar int vertex_indices\nend_header\n"
+            .to_vec();
+        for v in [1.0f64, 2.0, 1e300] {
+            bytes.extend_from_slice(&v.to_be_bytes());
+        }
+        let e = parse(&bytes).unwrap_err();
+        assert!(
+            e.starts_with("vertex 0 coordinate 'z' 1e300 is beyond"),
+            "{e}"
+        );
+    }
 }

@@ -13,6 +13,7 @@
 //! | `tetra`       | `4^(d+1) k^2` (depth d, faces cut k x k)    | 1.25x for N >= 64 |
 //! | `toys`        | 32 (ground) + the sum over the objects      | 1.25x for N >= 500 |
 
+mod memory;
 mod mount;
 pub(crate) mod random;
 mod shapes;
@@ -23,11 +24,19 @@ mod toys;
 
 use crate::mesh::Mesh;
 
+pub use memory::{available_bytes, check_available};
+
 /// The scene used when no mesh file is given.
 pub const DEFAULT_SCENE: &str = "spd:toys:100000";
 
 /// The largest triangle count a spec may ask for (the mesh would need tens of GB beyond it).
+/// Below it, [`generate`] also checks the mesh against the memory available.
 pub const MAX_TRIANGLES: u64 = 500_000_000;
+
+/// An upper bound on a generated mesh's bytes per requested triangle: up to 1.5x the
+/// triangles of N (the count rules above), 12 bytes each, and at most 3 vertices of 12
+/// bytes per triangle.
+const MESH_BYTES_PER_TRIANGLE: u64 = 72;
 
 /// A kind of procedural scene and how its size follows from N.
 #[derive(Clone, Copy, Debug)]
@@ -121,5 +130,29 @@ pub fn generate(spec: &str) -> Result<Mesh, String> {
             &format!("{n} triangles is more than the {MAX_TRIANGLES} a scene may have"),
         ));
     }
+    check_available(
+        n.saturating_mul(MESH_BYTES_PER_TRIANGLE),
+        &format!("the scene {spec}"),
+    )?;
     Ok((kind.generate)(n))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_memory_bound_holds_for_every_kind() {
+        for kind in KINDS {
+            for n in [1_000, 5_000, 60_000] {
+                let mesh = (kind.generate)(n);
+                let bytes = 12 * (mesh.vertices.len() + mesh.triangles.len()) as u64;
+                assert!(
+                    bytes <= n * MESH_BYTES_PER_TRIANGLE,
+                    "{} of {n}: {bytes} bytes",
+                    kind.name
+                );
+            }
+        }
+    }
 }

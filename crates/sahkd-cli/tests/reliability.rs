@@ -1,0 +1,286 @@
+//! Nothing silently wrong, nothing lost (issue 14): lying headers, thread counts, size
+//! limits, outputs that never clobber or half-write, inputs that load wrong, and messages
+//! that say what is wrong. Each test failed before its fix.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn sahkd(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sahkd"))
+        .args(args)
+        .output()
+        .expect("cannot start the sahkd binary")
+}
+
+/// Runs a command that must fail with `status` and one `error:` line naming every fragment.
+fn fails(args: &[&str], status: i32, fragments: &[&str]) -> String {
+    let out = sahkd(args);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(status), "sahkd {args:?}: {err}");
+    assert!(!err.contains("panicked"), "sahkd {args:?} panicked: {err}");
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 1, "sahkd {args:?}: not one line: {err}");
+    assert!(lines[0].starts_with("error: "), "sahkd {args:?}: {err}");
+    for f in fragments {
+        assert!(lines[0].contains(f), "sahkd {args:?}: '{f}' not in: {err}");
+    }
+    lines[0].to_string()
+}
+
+fn succeeds(args: &[&str]) {
+    let out = sahkd(args);
+    assert!(
+        out.status.success(),
+        "sahkd {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("temp paths are UTF-8")
+}
+
+/// The names in a folder, sorted (hidden temporaries included).
+fn entries(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+/// A version 1.0 .npy file whose header declares `shape` of float32, followed by `data`.
+fn npy(shape: &str, data: &[f32]) -> Vec<u8> {
+    let mut header =
+        format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape}, }}").into_bytes();
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(b' ');
+    }
+    header.push(b'\n');
+    let mut out = b"\x93NUMPY\x01\x00".to_vec();
+    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    out.extend_from_slice(&header);
+    for v in data {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out
+}
+
+/// One ray straight down onto the unit sphere of `spd:sphere:N`.
+const RAY: [f32; 6] = [0.0, 0.0, 5.0, 0.0, 0.0, -1.0];
+
+// Item 2 ------------------------------------------------------------------------------
+
+#[test]
+fn a_lying_npy_header_is_an_error_before_any_allocation() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("hits.npz");
+    let good = dir.path().join("good.npy");
+    std::fs::write(&good, npy("(1, 6)", &RAY)).unwrap();
+    succeeds(&["trace", "spd:sphere:200", "--rays", s(&good), "-o", s(&out)]);
+
+    // Rows x width overflows (was a "capacity overflow" panic), or merely exceeds the file.
+    for (name, shape) in [
+        ("overflow.npy", "(4611686018427387904, 6)"),
+        ("huge.npy", "(1000000000000, 8)"),
+        ("short.npy", "(2, 6)"),
+    ] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, npy(shape, &RAY)).unwrap();
+        fails(
+            &["trace", "spd:sphere:200", "--rays", s(&path), "-o", s(&out)],
+            1,
+            &[name, "more than the file's", "bytes of data hold"],
+        );
+    }
+}
+
+// Item 3 ------------------------------------------------------------------------------
+
+#[test]
+fn thread_counts_beyond_the_cap_are_refused_by_every_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let rays = dir.path().join("rays.npy");
+    std::fs::write(&rays, npy("(1, 6)", &RAY)).unwrap();
+    let out = dir.path().join("hits.npz");
+    let png = dir.path().join("p.png");
+    let max = sahkd::threads::max_threads().to_string();
+    let over = (sahkd::threads::max_threads() + 1).to_string();
+    for threads in ["100000", over.as_str()] {
+        for args in [
+            &["build", "spd:sphere:200", "--threads", threads][..],
+            &[
+                "render",
+                "spd:sphere:200",
+                "-o",
+                s(&png),
+                "--threads",
+                threads,
+            ],
+            &[
+                "trace",
+                "spd:sphere:200",
+                "--rays",
+                s(&rays),
+                "-o",
+                s(&out),
+                "--threads",
+                threads,
+            ],
+            &[
+                "bench",
+                "spd:sphere:200",
+                "--threads",
+                &format!("1,{threads}"),
+                "--out",
+                s(dir.path()),
+            ],
+        ] {
+            fails(args, 2, &[threads, &format!("at most {max}")]);
+        }
+    }
+    succeeds(&["build", "spd:sphere:200", "--threads", &max]);
+}
+
+// Item 4 ------------------------------------------------------------------------------
+
+#[test]
+fn a_scene_larger_than_the_memory_is_refused_up_front() {
+    let spec = format!("spd:sphere:{}", sahkd::scenes::MAX_TRIANGLES);
+    match sahkd::scenes::available_bytes() {
+        Some(available) if available < sahkd::scenes::MAX_TRIANGLES * 72 => {
+            fails(&["info", &spec], 1, &[&spec, "needs about", "available"]);
+        }
+        _ => eprintln!("skipped: this machine could hold {spec}, or cannot say its memory"),
+    }
+}
+
+// Item 5 ------------------------------------------------------------------------------
+
+#[test]
+fn outputs_never_overwrite_an_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("tri.ply");
+    let text = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+                end_header\n-1 -1 0\n1 -1 0\n0 1 0\n3 0 1 2\n";
+    std::fs::write(&mesh, text).unwrap();
+    let rays = dir.path().join("rays.npy");
+    let ray_bytes = npy("(1, 6)", &RAY);
+    std::fs::write(&rays, &ray_bytes).unwrap();
+    // The same file under another spelling is still the input.
+    let mesh_again = dir.path().join(".").join("tri.ply");
+    for target in [&mesh, &rays, &mesh_again] {
+        fails(
+            &["trace", s(&mesh), "--rays", s(&rays), "-o", s(target)],
+            1,
+            &["is the input"],
+        );
+    }
+    assert_eq!(std::fs::read_to_string(&mesh).unwrap(), text);
+    assert_eq!(std::fs::read(&rays).unwrap(), ray_bytes);
+}
+
+#[test]
+fn outputs_replace_old_files_whole_and_leave_no_temporaries() {
+    let dir = tempfile::tempdir().unwrap();
+    let rays = dir.path().join("rays.npy");
+    std::fs::write(&rays, npy("(1, 6)", &RAY)).unwrap();
+    let out = dir.path().join("hits.npz");
+    let png = dir.path().join("p.png");
+    std::fs::write(&out, "an old file").unwrap();
+    succeeds(&["trace", "spd:sphere:200", "--rays", s(&rays), "-o", s(&out)]);
+    succeeds(&[
+        "render",
+        "spd:sphere:200",
+        "-o",
+        s(&png),
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    assert!(std::fs::read(&out).unwrap().starts_with(b"PK"), "not a zip");
+    assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+    assert_eq!(entries(dir.path()), ["hits.npz", "p.png", "rays.npy"]);
+}
+
+#[test]
+fn a_failed_bench_leaves_no_empty_output_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("new").join("results");
+    let missing = dir.path().join("missing.ply");
+    fails(
+        &["bench", s(&missing), "--out", s(&out), "--repeat", "1"],
+        1,
+        &["missing.ply"],
+    );
+    assert_eq!(entries(dir.path()), Vec::<String>::new());
+}
+
+// Item 7 ------------------------------------------------------------------------------
+
+#[test]
+fn a_directory_or_a_device_given_as_a_mesh_says_what_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    fails(
+        &["info", s(dir.path())],
+        1,
+        &[s(dir.path()), "is a directory"],
+    );
+    if Path::new("/dev/null").exists() {
+        fails(
+            &["build", "/dev/null"],
+            1,
+            &["/dev/null", "is a character device"],
+        );
+    }
+}
+
+#[test]
+fn errors_about_a_mesh_name_the_file_and_float32_overflow() {
+    let dir = tempfile::tempdir().unwrap();
+    let head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+                end_header\n";
+    let nan = dir.path().join("nan.ply");
+    std::fs::write(&nan, format!("{head}0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n")).unwrap();
+    fails(
+        &["build", s(&nan)],
+        1,
+        &["nan.ply", "vertex 1", "non-finite"],
+    );
+    let index = dir.path().join("index.ply");
+    std::fs::write(&index, format!("{head}0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n")).unwrap();
+    fails(&["info", s(&index)], 1, &["index.ply", "vertex 7"]);
+    let big = dir.path().join("big.ply");
+    std::fs::write(&big, format!("{head}0 0 0\n1e39 0 0\n0 1 0\n3 0 1 2\n")).unwrap();
+    fails(
+        &["info", s(&big)],
+        1,
+        &["big.ply", "line 11", "beyond the float32 range"],
+    );
+}
+
+#[test]
+fn the_picture_size_is_checked_before_the_mesh_is_loaded() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("p.png");
+    let missing = dir.path().join("missing.ply");
+    let line = fails(
+        &[
+            "render",
+            s(&missing),
+            "-o",
+            s(&png),
+            "--width",
+            "65536",
+            "--height",
+            "65536",
+        ],
+        1,
+        &["65536x65536", "too large"],
+    );
+    assert!(!line.contains("missing.ply"), "{line}");
+}
