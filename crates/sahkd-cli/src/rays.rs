@@ -5,15 +5,35 @@ use anyhow::{bail, Context, Result};
 use npyz::{DType, NpyFile, Order, TypeChar};
 use sahkd::{Ray, Vec3};
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufRead, BufReader};
 use std::path::Path;
 
 /// Reads an (R, 6) or (R, 8) float32 array. Rows of 6 get the range [0, inf).
 pub fn read(path: &Path) -> Result<Vec<Ray>> {
     let name = path.display();
     let file = File::open(path).with_context(|| format!("cannot read {name}"))?;
-    let npy = NpyFile::new(BufReader::new(file))
-        .with_context(|| format!("{name}: not a readable .npy file"))?;
+    let file_bytes = file
+        .metadata()
+        .with_context(|| format!("cannot read {name}"))?
+        .len();
+    let mut reader = BufReader::new(file);
+    // npyz multiplies the header's dimensions unchecked (a panic on overflow in debug builds,
+    // a wrong count otherwise), so a shape no file could hold is refused before it looks.
+    if let Some((shape, data_start)) = declared_shape(&mut reader) {
+        let data_bytes = file_bytes.saturating_sub(data_start);
+        let fits = shape
+            .iter()
+            .try_fold(4u64, |bytes, &d| bytes.checked_mul(d))
+            .is_some_and(|n| n <= data_bytes);
+        if !fits {
+            bail!(
+                "{name}: the header declares shape {} of float32, more than the file's \
+                 {data_bytes} bytes of data hold",
+                describe_shape(&shape)
+            );
+        }
+    }
+    let npy = NpyFile::new(reader).with_context(|| format!("{name}: not a readable .npy file"))?;
     let dtype = npy.dtype();
     if !is_float32(&dtype) {
         bail!(
@@ -29,6 +49,16 @@ pub fn read(path: &Path) -> Result<Vec<Ray>> {
             describe_shape(&shape)
         ),
     };
+    // Checked again on npyz's reading of the shape, in case the pre-check could not read it.
+    if shape[0]
+        .checked_mul(width as u64 * 4)
+        .is_none_or(|n| n > file_bytes)
+    {
+        bail!(
+            "{name}: the header declares {} rays, more than the file holds",
+            shape[0]
+        );
+    }
     let rows = usize::try_from(shape[0]).context("too many rays")?;
     let order = npy.order();
     let values: Vec<f32> = npy
@@ -52,6 +82,44 @@ pub fn read(path: &Path) -> Result<Vec<Ray>> {
             }
         })
         .collect())
+}
+
+/// The `shape` of a .npy header and where its data starts, read without consuming it;
+/// `None` when the header is not one this can read (npyz then reports what is wrong).
+fn declared_shape(reader: &mut BufReader<File>) -> Option<(Vec<u64>, u64)> {
+    let head = reader.fill_buf().ok()?;
+    let rest = head.strip_prefix(b"\x93NUMPY")?;
+    // Version 1 has a 2-byte header length, later versions 4 bytes.
+    let (length, text, prefix) = match rest.first()? {
+        1 => (
+            u16::from_le_bytes([*rest.get(2)?, *rest.get(3)?]) as usize,
+            rest.get(4..)?,
+            10,
+        ),
+        _ => (
+            u32::from_le_bytes(rest.get(2..6)?.try_into().ok()?) as usize,
+            rest.get(6..)?,
+            12,
+        ),
+    };
+    let header = std::str::from_utf8(text.get(..length.min(text.len()))?).ok()?;
+    let key = header
+        .find("'shape'")
+        .or_else(|| header.find("\"shape\""))?;
+    let after = &header[key + "'shape'".len()..];
+    let tuple = after
+        .trim_start()
+        .strip_prefix(':')?
+        .trim_start()
+        .strip_prefix('(')?;
+    let tuple = &tuple[..tuple.find(')')?];
+    let shape = tuple
+        .split(',')
+        .map(str::trim)
+        .filter(|d| !d.is_empty())
+        .map(|d| d.trim_end_matches('L').parse::<u64>().ok())
+        .collect::<Option<Vec<u64>>>()?;
+    Some((shape, (prefix + length) as u64))
 }
 
 fn is_float32(dtype: &DType) -> bool {

@@ -1,26 +1,30 @@
-//! Ray throughput of the kd-tree traversal on one mesh: primary and occlusion rays.
+//! Ray throughput of the kd-tree traversal on one mesh: primary, shadow, AO and bounce rays.
 //!
 //! ```text
-//! cargo run --release -p sahkd --example trace_throughput -- MESH [--camera front|auto]
-//!     [--threads N] [--size 1024] [--repeat 7] [--dump DIR]
-//!     [--traversal-cost X] [--empty-bonus X]
+//! cargo run --release -p sahkd --example trace_throughput -- MESH [--camera front|near|auto]
+//!     [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR]
+//!     [--sets primary,shadow,ao,bounce] [--no-count] [--traversal-cost X] [--empty-bonus X]
 //! ```
 //! The tree is built with the default options, or the cost model's traversal cost and
 //! empty-space bonus given.
-//! Primary rays: one per pixel centre of a size x size picture. `front` is the fixed benchmark
-//! camera (bounding-box centre + (0, 0, 2 x diagonal) looking at the centre, up +y, 45 degree
-//! vertical field of view; most rays miss), `auto` the camera `sahkd render` picks (the mesh
-//! fills the frame). Occlusion rays: for every primary hit, the shadow ray towards the
-//! renderer's sun, from the hit point moved off the surface exactly as `sahkd render` does.
+//! Primary rays (closest hit): one per pixel centre of a size x size picture. `front` is the
+//! fixed benchmark camera (bounding-box centre + (0, 0, 2 x diagonal) looking at the centre,
+//! up +y, 45 degree vertical field of view; most rays miss), `near` the same at 0.75 diagonals,
+//! `auto` the camera `sahkd render` picks (the mesh fills the frame; inside the building for
+//! Sponza). From every primary hit, moved off the surface as `sahkd render` does: one shadow
+//! ray to a point light (any hit), 8 cosine-weighted AO rays with t_max a tenth of the
+//! diagonal (any hit) and one cosine-weighted bounce ray (closest hit).
 //!
-//! Each batch is traced `--repeat` times in a rayon pool of `--threads` workers
+//! Each set is traced `--repeat` times in a rayon pool of each of the `--threads` counts
 //! (`KdTree::intersect_batch` / `occluded_batch`); the median and min-max Mrays/s are printed,
-//! with nodes visited and triangles tested per ray from one counting pass. `--dump DIR` writes
-//! the triangles and both ray sets as `.npy` files for `scripts/embree_throughput.py`, which
-//! traces the very same rays with Embree.
+//! with nodes visited, leaves entered and triangles tested per ray from one counting pass.
+//! `--sets` times only the sets named, `--no-count` skips the counting pass (both for
+//! profiling one set's batch calls, e.g. under callgrind).
+//! `--dump DIR` writes the triangles, every set and sahkd's answers as `.npy` files for
+//! `scripts/embree_throughput.py`, which traces the very same rays with Embree.
 
-use sahkd::render::{facing_normal, Camera, SUN_DIRECTION};
-use sahkd::{BuildOptions, Hit, KdTree, Mesh, Ray, TraceStats};
+use sahkd::render::{facing_normal, Camera};
+use sahkd::{BuildOptions, Hit, KdTree, Mesh, Ray, TraceStats, Vec3};
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
@@ -28,10 +32,12 @@ use std::time::Instant;
 struct Args {
     mesh: String,
     camera: String,
-    threads: usize,
+    threads: Vec<usize>,
     size: u32,
     repeat: usize,
     dump: Option<String>,
+    sets: Option<Vec<String>>,
+    count: bool,
     options: BuildOptions,
 }
 
@@ -39,10 +45,12 @@ fn parse_args() -> Result<Args, String> {
     let mut args = Args {
         mesh: String::new(),
         camera: "front".into(),
-        threads: 1,
+        threads: vec![1, 2],
         size: 1024,
         repeat: 7,
         dump: None,
+        sets: None,
+        count: true,
         options: BuildOptions::default(),
     };
     let mut it = std::env::args().skip(1);
@@ -52,8 +60,9 @@ fn parse_args() -> Result<Args, String> {
             "--camera" => args.camera = value("--camera")?,
             "--threads" => {
                 args.threads = value("--threads")?
-                    .parse()
-                    .map_err(|e| format!("--threads: {e}"))?
+                    .split(',')
+                    .map(|t| t.parse().map_err(|e| format!("--threads: {e}")))
+                    .collect::<Result<_, _>>()?
             }
             "--size" => {
                 args.size = value("--size")?
@@ -66,6 +75,8 @@ fn parse_args() -> Result<Args, String> {
                     .map_err(|e| format!("--repeat: {e}"))?
             }
             "--dump" => args.dump = Some(value("--dump")?),
+            "--sets" => args.sets = Some(value("--sets")?.split(',').map(String::from).collect()),
+            "--no-count" => args.count = false,
             "--traversal-cost" => {
                 args.options.cost.traversal = value("--traversal-cost")?
                     .parse()
@@ -81,23 +92,78 @@ fn parse_args() -> Result<Args, String> {
         }
     }
     if args.mesh.is_empty() {
-        return Err("usage: trace_throughput MESH [--camera front|auto] [--threads N] [--size 1024] [--repeat 7] [--dump DIR] [--traversal-cost X] [--empty-bonus X]".into());
+        return Err("usage: trace_throughput MESH [--camera front|near|auto] [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR] [--sets primary,shadow,ao,bounce] [--no-count] [--traversal-cost X] [--empty-bonus X]".into());
     }
-    if args.threads == 0 || args.repeat == 0 || args.size == 0 {
+    if args.threads.contains(&0) || args.repeat == 0 || args.size == 0 {
         return Err("--threads, --repeat and --size must be at least 1".into());
     }
     Ok(args)
 }
 
-/// The shadow ray towards the sun of a hit, placed off the surface as `sahkd render` does.
-fn shadow_ray(tree: &KdTree, ray: &Ray, hit: &Hit) -> Ray {
+/// A hit point moved off its surface, on the side the ray came from, as `sahkd render` does,
+/// and the unit normal of that side.
+fn surface_point(tree: &KdTree, ray: &Ray, hit: &Hit) -> (Vec3, Vec3) {
     let tri = &tree.triangles()[hit.prim as usize];
     let normal = facing_normal(tri, ray);
     let p = tri[0] * (1.0 - hit.u - hit.v) + tri[1] * hit.u + tri[2] * hit.v;
     let magnitude = p[0].abs().max(p[1].abs()).max(p[2].abs());
     let offset =
         sahkd::render::OFFSET_SCALE * tree.bounds().diagonal() + 8.0 * f32::EPSILON * magnitude;
-    Ray::new(p + normal * offset, SUN_DIRECTION)
+    (p + normal * offset, normal)
+}
+
+/// A uniform number in [0, 1) from a 64-bit key (splitmix64's finaliser), so every ray set is
+/// the same on every run and thread count.
+fn uniform(key: u64) -> f32 {
+    let mut z = key.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// A cosine-weighted direction around unit `n` (a uniform point of the unit disc lifted to
+/// the hemisphere), from the ray key `key`.
+fn cosine_direction(n: Vec3, key: u64) -> Vec3 {
+    let (u1, u2) = (uniform(2 * key), uniform(2 * key + 1));
+    let t = if n[0].abs() > n[2].abs() {
+        Vec3::new(-n[1], n[0], 0.0)
+    } else {
+        Vec3::new(0.0, -n[2], n[1])
+    }
+    .normalized();
+    let b = n.cross(t);
+    let r = u1.sqrt();
+    let phi = 2.0 * std::f32::consts::PI * u2;
+    (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()).normalized()
+}
+
+/// AO rays per primary hit.
+const AO_RAYS: u64 = 8;
+
+/// The secondary rays of every primary hit: the shadow ray to the point light (any hit,
+/// direction = light - origin, t in [0, 1)), `AO_RAYS` cosine-weighted ambient-occlusion rays
+/// (any hit, t_max a tenth of the scene diagonal) and one cosine-weighted bounce ray
+/// (closest hit).
+fn secondary_rays(
+    tree: &KdTree,
+    light: Vec3,
+    primary: &[Ray],
+    hits: &[Option<Hit>],
+) -> (Vec<Ray>, Vec<Ray>, Vec<Ray>) {
+    let ao_reach = 0.1 * tree.bounds().diagonal();
+    let (mut shadow, mut ao, mut bounce) = (Vec::new(), Vec::new(), Vec::new());
+    for (i, (ray, hit)) in primary.iter().zip(hits).enumerate() {
+        let Some(hit) = hit else { continue };
+        let (p, n) = surface_point(tree, ray, hit);
+        // Just short of the light, which sits in empty space.
+        shadow.push(Ray::new(p, light - p).with_range(0.0, 1.0 - 1e-4));
+        let key = i as u64 * (AO_RAYS + 1);
+        for k in 0..AO_RAYS {
+            ao.push(Ray::new(p, cosine_direction(n, key + k)).with_range(0.0, ao_reach));
+        }
+        bounce.push(Ray::new(p, cosine_direction(n, key + AO_RAYS)));
+    }
+    (shadow, ao, bounce)
 }
 
 /// Median, min and max of Mrays/s over the repeats of `f`.
@@ -144,13 +210,52 @@ fn ray_rows(rays: &[Ray]) -> Vec<f32> {
         .collect()
 }
 
-fn dump(
-    dir: &str,
-    tree: &KdTree,
-    primary: &[Ray],
-    hits: &[Option<Hit>],
-    occlusion: &[Ray],
-) -> std::io::Result<()> {
+/// Closest hit or any hit.
+#[derive(Clone, Copy, PartialEq)]
+enum Query {
+    Closest,
+    Any,
+}
+
+impl Query {
+    fn name(self) -> &'static str {
+        match self {
+            Query::Closest => "closest",
+            Query::Any => "any",
+        }
+    }
+}
+
+struct RaySet {
+    name: &'static str,
+    query: Query,
+    rays: Vec<Ray>,
+}
+
+/// sahkd's answers to a set, as rows for the agreement check: `[t, triangle]` (inf and -1 for
+/// a miss) for closest hits, `[1 or 0]` for any hit.
+fn answers(tree: &KdTree, set: &RaySet) -> (Vec<f32>, usize, usize) {
+    match set.query {
+        Query::Closest => {
+            let hits = tree.intersect_batch(&set.rays);
+            let found = hits.iter().filter(|h| h.is_some()).count();
+            let rows = hits
+                .iter()
+                .flat_map(|h| h.map_or([f32::INFINITY, -1.0], |h| [h.t, h.prim as f32]))
+                .collect();
+            (rows, 2, found)
+        }
+        Query::Any => {
+            let blocked = tree.occluded_batch(&set.rays);
+            let found = blocked.iter().filter(|&&b| b).count();
+            (blocked.iter().map(|&b| b as u8 as f32).collect(), 1, found)
+        }
+    }
+}
+
+/// Writes the triangles, and per set `NAME.npy` (rays) and `NAME_answers.npy`, and
+/// `sets.txt` (one line `NAME closest|any` per set) for `scripts/embree_throughput.py`.
+fn dump(dir: &str, tree: &KdTree, sets: &[RaySet]) -> std::io::Result<()> {
     let dir = Path::new(dir);
     std::fs::create_dir_all(dir)?;
     let corners: Vec<f32> = tree
@@ -163,22 +268,22 @@ fn dump(
         &[tree.triangles().len(), 3, 3],
         &corners,
     )?;
-    write_npy(
-        &dir.join("primary.npy"),
-        &[primary.len(), 8],
-        &ray_rows(primary),
-    )?;
-    write_npy(
-        &dir.join("occlusion.npy"),
-        &[occlusion.len(), 8],
-        &ray_rows(occlusion),
-    )?;
-    // sahkd's answers, for the agreement check: hit distance (inf for a miss) and triangle.
-    let answers: Vec<f32> = hits
-        .iter()
-        .flat_map(|h| h.map_or([f32::INFINITY, -1.0], |h| [h.t, h.prim as f32]))
-        .collect();
-    write_npy(&dir.join("primary_hits.npy"), &[hits.len(), 2], &answers)
+    let mut list = String::new();
+    for set in sets {
+        write_npy(
+            &dir.join(format!("{}.npy", set.name)),
+            &[set.rays.len(), 8],
+            &ray_rows(&set.rays),
+        )?;
+        let (rows, width, _) = answers(tree, set);
+        write_npy(
+            &dir.join(format!("{}_answers.npy", set.name)),
+            &[set.rays.len(), width],
+            &rows,
+        )?;
+        list += &format!("{} {}\n", set.name, set.query.name());
+    }
+    std::fs::write(dir.join("sets.txt"), list)
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -187,10 +292,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let start = Instant::now();
     let tree = sahkd::build(&mesh, &args.options)?.tree;
     let build_seconds = start.elapsed().as_secs_f64();
+    let bounds = tree.bounds();
     let camera = match args.camera.as_str() {
-        "front" => Camera::front(tree.bounds()),
+        "front" => Camera::front(bounds),
+        "near" => Camera {
+            eye: bounds.centre() + Vec3::new(0.0, 0.0, 0.75 * bounds.diagonal()),
+            ..Camera::front(bounds)
+        },
         "auto" => Camera::framing(&tree),
-        other => return Err(format!("unknown camera {other:?} (front or auto)").into()),
+        other => return Err(format!("unknown camera {other:?} (front, near or auto)").into()),
+    };
+    // A point light above and to the front left of the scene, or for a camera inside the
+    // scene's box (Sponza's `auto`) high up in the middle of the box.
+    let inside = (0..3).all(|a| camera.eye[a] > bounds.lo[a] && camera.eye[a] < bounds.hi[a]);
+    let light = if inside {
+        bounds.centre() + Vec3::new(0.0, 0.3 * bounds.extent()[1], 0.0)
+    } else {
+        bounds.centre() + Vec3::new(-0.3, 0.6, 0.4) * bounds.diagonal()
     };
     let n = args.size;
     let primary: Vec<Ray> = (0..n)
@@ -201,38 +319,36 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let start = Instant::now();
     std::hint::black_box(tree.intersect(&primary[0]));
     let layout_seconds = start.elapsed().as_secs_f64();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads)
-        .build()?;
-    let hits = pool.install(|| tree.intersect_batch(&primary));
-    let occlusion: Vec<Ray> = primary
-        .iter()
-        .zip(&hits)
-        .filter_map(|(r, h)| h.as_ref().map(|h| shadow_ray(&tree, r, h)))
-        .collect();
+    let hits = tree.intersect_batch(&primary);
+    let (shadow, ao, bounce) = secondary_rays(&tree, light, &primary, &hits);
+    let sets = [
+        RaySet {
+            name: "primary",
+            query: Query::Closest,
+            rays: primary,
+        },
+        RaySet {
+            name: "shadow",
+            query: Query::Any,
+            rays: shadow,
+        },
+        RaySet {
+            name: "ao",
+            query: Query::Any,
+            rays: ao,
+        },
+        RaySet {
+            name: "bounce",
+            query: Query::Closest,
+            rays: bounce,
+        },
+    ];
     if let Some(dir) = &args.dump {
-        dump(dir, &tree, &primary, &hits, &occlusion)?;
+        dump(dir, &tree, &sets)?;
     }
-
-    let mut primary_stats = TraceStats::default();
-    for r in &primary {
-        tree.intersect_counted(r, &mut primary_stats);
-    }
-    let mut occlusion_stats = TraceStats::default();
-    let mut blocked = 0usize;
-    for r in &occlusion {
-        blocked += tree.occluded_counted(r, &mut occlusion_stats) as usize;
-    }
-
-    let primary_rate = throughput(primary.len(), args.repeat, || {
-        std::hint::black_box(pool.install(|| tree.intersect_batch(&primary)));
-    });
-    let occlusion_rate = throughput(occlusion.len(), args.repeat, || {
-        std::hint::black_box(pool.install(|| tree.occluded_batch(&occlusion)));
-    });
 
     println!(
-        "{}: {} triangles, {} nodes, {} references, built in {build_seconds:.2} s, trace layout ({:.0} MB) in {:.3} s; camera {}, {n}x{n}, {} thread(s), {} repeats",
+        "{}: {} triangles, {} nodes, {} references, built in {build_seconds:.2} s, trace layout ({:.0} MB) in {:.3} s; camera {} (eye {:?}{}), light {:?}, {n}x{n}, {} repeats",
         args.mesh,
         tree.triangles().len(),
         tree.nodes().len(),
@@ -241,38 +357,56 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         (8 * tree.nodes().len() + 40 * tree.refs().len()) as f64 / 1e6,
         layout_seconds,
         args.camera,
-        args.threads,
+        camera.eye.0,
+        if inside { ", inside the box" } else { "" },
+        light.0,
         args.repeat
     );
-    let per_ray = |s: &TraceStats, rays: usize| {
-        let rays = rays.max(1) as f64;
-        (s.nodes as f64 / rays, s.triangles as f64 / rays)
-    };
-    let hit_count = hits.iter().filter(|h| h.is_some()).count();
-    for (name, rays, rate, stats, answered) in [
-        (
-            "primary",
-            primary.len(),
-            primary_rate,
-            primary_stats,
-            hit_count,
-        ),
-        (
-            "occlusion",
-            occlusion.len(),
-            occlusion_rate,
-            occlusion_stats,
-            blocked,
-        ),
-    ] {
-        let (nodes, tris) = per_ray(&stats, rays);
-        println!(
-            "{name:>9}: {rays:>8} rays, {:5.1}% hit, {:6.2} Mrays/s median ({:.2}-{:.2}), {nodes:.1} nodes and {tris:.2} triangles per ray",
-            100.0 * answered as f64 / rays.max(1) as f64,
-            rate.0,
-            rate.1,
-            rate.2
-        );
+    for set in &sets {
+        if args
+            .sets
+            .as_ref()
+            .is_some_and(|only| !only.iter().any(|s| s == set.name))
+        {
+            continue;
+        }
+        // Nodes, leaves and triangles per ray from one counting pass of the single-ray walk,
+        // which the packets' lanes follow exactly.
+        let mut stats = TraceStats::default();
+        let mut found = 0usize;
+        for r in set.rays.iter().filter(|_| args.count) {
+            found += match set.query {
+                Query::Closest => tree.intersect_counted(r, &mut stats).is_some(),
+                Query::Any => tree.occluded_counted(r, &mut stats),
+            } as usize;
+        }
+        let count = set.rays.len().max(1) as f64;
+        for &threads in &args.threads {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()?;
+            let rate = throughput(set.rays.len(), args.repeat, || match set.query {
+                Query::Closest => {
+                    std::hint::black_box(pool.install(|| tree.intersect_batch(&set.rays)));
+                }
+                Query::Any => {
+                    std::hint::black_box(pool.install(|| tree.occluded_batch(&set.rays)));
+                }
+            });
+            println!(
+                "{:>7} ({}): {:>8} rays, {:5.1}% hit, {threads} thread(s), {:6.2} Mrays/s median ({:.2}-{:.2}), {:.1} nodes, {:.2} leaves, {:.2} triangles per ray",
+                set.name,
+                set.query.name(),
+                set.rays.len(),
+                100.0 * found as f64 / count,
+                rate.0,
+                rate.1,
+                rate.2,
+                stats.nodes as f64 / count,
+                stats.leaves as f64 / count,
+                stats.triangles as f64 / count,
+            );
+        }
     }
     Ok(())
 }

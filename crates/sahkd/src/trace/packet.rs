@@ -10,11 +10,12 @@
 //! would: a packet needs the same direction signs on every axis, so near and far children are
 //! the same for all lanes; a lane is active in a node only when its own walk reaches the node
 //! (the masks below) and the node starts within its own limit; its interval is cut at the
-//! plane exactly as the single walk cuts it. The lanes' leaves therefore come in the same
+//! plane exactly as the single walk cuts it, and its leaves' triangles are tested as the single
+//! walk tests them (`visit_leaf`). The lanes' leaves therefore come in the same
 //! order with the same triangles and limits, and the answers are those of the single-ray
 //! queries, bit for bit. Packets with mixed signs are traced one ray at a time.
 
-use super::{clip_to_box, Hit, Ray, ShearedRay};
+use super::{clip_to_box, visit_leaf, Hit, Ray, ShearedRay};
 use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::Vec3;
 use crate::tree::KdTree;
@@ -184,29 +185,22 @@ impl KdTree {
                 if !records.is_empty() {
                     let sheared = sheared
                         .get_or_insert_with(|| std::array::from_fn(|i| ShearedRay::new(&rays[i])));
-                    let mut testing = m;
-                    for record in records {
-                        let mut bits = testing;
-                        while bits != 0 {
-                            let i = bits.trailing_zeros() as usize;
-                            bits &= bits - 1;
-                            if let Some(h) =
-                                sheared[i].intersect(&record.corners, t_min[i], limit[i])
-                            {
-                                let hit = Hit {
-                                    t: h.t,
-                                    prim: record.prim,
-                                    u: h.u,
-                                    v: h.v,
-                                };
-                                if visit(i, hit, &mut limit[i]) {
-                                    testing &= !(1 << i);
-                                    done |= 1 << i;
-                                }
-                            }
-                        }
-                        if testing == 0 {
-                            break;
+                    // Lane after lane: each lane sees its hits in the leaf's order, as its
+                    // single-ray walk does.
+                    let mut bits = m;
+                    while bits != 0 {
+                        let i = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        let mut visit_lane = |hit: Hit, limit: &mut f32| visit(i, hit, limit);
+                        if visit_leaf(
+                            &sheared[i],
+                            records,
+                            t_min[i],
+                            &mut limit[i],
+                            &mut (),
+                            &mut visit_lane,
+                        ) {
+                            done |= 1 << i;
                         }
                     }
                     if done == live {
