@@ -26,10 +26,9 @@ pub struct BuilderArgs {
     #[arg(long, value_enum, value_name = "DEVICE", default_value_t = DeviceArg::Cpu)]
     pub device: DeviceArg,
 
-    /// Tree builder
-    #[arg(long, value_enum, value_name = "NAME",
-          default_value_t = default_options().algorithm.into())]
-    pub algorithm: AlgorithmArg,
+    /// Tree builder [default: hybrid; level with --device gpu]
+    #[arg(long, value_enum, value_name = "NAME")]
+    pub algorithm: Option<AlgorithmArg>,
 
     /// Axes a node's split candidates come from
     #[arg(long, value_enum, value_name = "WHICH",
@@ -52,7 +51,8 @@ pub struct BuilderArgs {
           default_value_t = default_options().median_large_node)]
     pub large_node: u32,
 
-    /// Worker threads for building and tracing [default: all cores]
+    /// Worker threads for building and tracing, at most 4 per core (64 on any machine)
+    /// [default: all cores]
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = parse_threads)]
     pub threads: Option<usize>,
 
@@ -90,8 +90,14 @@ pub struct BuilderArgs {
 impl BuilderArgs {
     /// The library's options for these arguments (`threads` as given, `None` for all cores).
     pub fn build_options(&self) -> BuildOptions {
+        // The GPU runs the level builder only: there it is the default.
+        let algorithm = match (self.algorithm, self.device) {
+            (Some(a), _) => a.into(),
+            (None, DeviceArg::Gpu) => Algorithm::Level,
+            (None, DeviceArg::Cpu) => default_options().algorithm,
+        };
         BuildOptions {
-            algorithm: self.algorithm.into(),
+            algorithm,
             axes: self.axes.into(),
             counting: self.counting.into(),
             clip: self.clip.into(),
@@ -188,6 +194,8 @@ pub enum DeviceArg {
 /// `sahkd::Algorithm` as a command-line value.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum AlgorithmArg {
+    /// Level passes at the top, then each node's subtree by the sweep on one worker (the sweep's tree, on every core)
+    Hybrid,
     /// Wald & Havran sweep: serial, exact SAH over sorted events
     Sweep,
     /// Li, Tan & Liao: breadth-first, every candidate of a level priced in parallel
@@ -200,23 +208,17 @@ pub enum AlgorithmArg {
 
 impl From<Algorithm> for AlgorithmArg {
     fn from(a: Algorithm) -> Self {
-        match a {
-            Algorithm::Sweep => Self::Sweep,
-            Algorithm::Level => Self::Level,
-            Algorithm::Naive => Self::Naive,
-            Algorithm::Median => Self::Median,
-        }
+        Self::from_str(a.name(), false).expect("the library's names are the command line's")
     }
 }
 
 impl From<AlgorithmArg> for Algorithm {
     fn from(a: AlgorithmArg) -> Self {
-        match a {
-            AlgorithmArg::Sweep => Self::Sweep,
-            AlgorithmArg::Level => Self::Level,
-            AlgorithmArg::Naive => Self::Naive,
-            AlgorithmArg::Median => Self::Median,
-        }
+        let value = a.to_possible_value().expect("every value is named");
+        value
+            .get_name()
+            .parse()
+            .expect("the command line's names are the library's")
     }
 }
 
@@ -231,19 +233,17 @@ pub enum AxesArg {
 
 impl From<Axes> for AxesArg {
     fn from(a: Axes) -> Self {
-        match a {
-            Axes::Longest => Self::Longest,
-            Axes::All => Self::All,
-        }
+        Self::from_str(a.name(), false).expect("the library's names are the command line's")
     }
 }
 
 impl From<AxesArg> for Axes {
     fn from(a: AxesArg) -> Self {
-        match a {
-            AxesArg::Longest => Self::Longest,
-            AxesArg::All => Self::All,
-        }
+        let value = a.to_possible_value().expect("every value is named");
+        value
+            .get_name()
+            .parse()
+            .expect("the command line's names are the library's")
     }
 }
 
@@ -257,20 +257,18 @@ pub enum CountingArg {
 }
 
 impl From<Counting> for CountingArg {
-    fn from(c: Counting) -> Self {
-        match c {
-            Counting::SpaceTree => Self::SpaceTree,
-            Counting::Scan => Self::Scan,
-        }
+    fn from(a: Counting) -> Self {
+        Self::from_str(a.name(), false).expect("the library's names are the command line's")
     }
 }
 
 impl From<CountingArg> for Counting {
-    fn from(c: CountingArg) -> Self {
-        match c {
-            CountingArg::SpaceTree => Self::SpaceTree,
-            CountingArg::Scan => Self::Scan,
-        }
+    fn from(a: CountingArg) -> Self {
+        let value = a.to_possible_value().expect("every value is named");
+        value
+            .get_name()
+            .parse()
+            .expect("the command line's names are the library's")
     }
 }
 
@@ -299,26 +297,15 @@ impl From<Switch> for bool {
 
 /// The kebab-case names the command line uses, for reports.
 pub fn algorithm_name(a: Algorithm) -> &'static str {
-    match a {
-        Algorithm::Sweep => "sweep",
-        Algorithm::Level => "level",
-        Algorithm::Naive => "naive",
-        Algorithm::Median => "median",
-    }
+    a.name()
 }
 
 pub fn axes_name(a: Axes) -> &'static str {
-    match a {
-        Axes::Longest => "longest",
-        Axes::All => "all",
-    }
+    a.name()
 }
 
 pub fn counting_name(c: Counting) -> &'static str {
-    match c {
-        Counting::SpaceTree => "space-tree",
-        Counting::Scan => "scan",
-    }
+    c.name()
 }
 
 pub fn switch_name(b: bool) -> &'static str {
@@ -351,10 +338,10 @@ fn parse_max_depth(s: &str) -> Result<MaxDepth, String> {
         .map_err(|_| format!("expected a whole number or `auto`, found `{s}`"))
 }
 
-fn parse_threads(s: &str) -> Result<usize, String> {
-    match s.parse::<usize>() {
-        Ok(0) => Err("the number of threads must be at least 1".into()),
-        Ok(n) => Ok(n),
+/// A thread count within the library's rule (`sahkd::threads`), as every command takes it.
+pub fn parse_threads(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) => sahkd::threads::check(n),
         Err(_) => Err(format!("expected a number of threads, found `{s}`")),
     }
 }
@@ -406,6 +393,29 @@ fn parse_at_least_one(s: &str) -> Result<f32, String> {
 mod tests {
     use super::*;
     use clap::Parser;
+
+    /// The value enums only add help texts: their names are the library's, all of them.
+    #[test]
+    fn value_names_are_the_librarys() {
+        let names = |values: &[clap::builder::PossibleValue]| -> Vec<String> {
+            values.iter().map(|v| v.get_name().to_string()).collect()
+        };
+        let cli: Vec<_> = AlgorithmArg::value_variants()
+            .iter()
+            .map(|v| v.to_possible_value().unwrap())
+            .collect();
+        assert_eq!(names(&cli), Algorithm::NAMES);
+        let cli: Vec<_> = AxesArg::value_variants()
+            .iter()
+            .map(|v| v.to_possible_value().unwrap())
+            .collect();
+        assert_eq!(names(&cli), Axes::NAMES);
+        let cli: Vec<_> = CountingArg::value_variants()
+            .iter()
+            .map(|v| v.to_possible_value().unwrap())
+            .collect();
+        assert_eq!(names(&cli), Counting::NAMES);
+    }
 
     #[derive(Parser)]
     struct Wrapper {
@@ -468,6 +478,7 @@ mod tests {
         for bad in [
             &["--threads", "0"][..],
             &["--threads", "many"],
+            &["--threads", "100000"],
             &["--algorithm", "quick"],
             &["--clip", "yes"],
             &["--kt", "-1"],

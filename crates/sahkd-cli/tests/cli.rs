@@ -500,7 +500,7 @@ fn check_trace_matches_brute(width: usize, extra: &[&str]) {
     assert_eq!(report["rays"], n);
     assert_eq!(report["hits"], hits);
     assert_eq!(report["triangles"], triangles.len());
-    for key in ["build_ms", "trace_ms", "mrays_per_s"] {
+    for key in ["build_ms", "layout_ms", "trace_ms", "mrays_per_s"] {
         let x = report[key].as_f64().unwrap();
         assert!(x.is_finite() && x >= 0.0, "{key} = {x}");
     }

@@ -16,40 +16,15 @@ pub const COST_KEYWORDS: [&str; 6] = [
     "max_duplication",
 ];
 
-fn choice<T: Copy>(name: &str, value: &str, table: &[(&str, T)]) -> PyResult<T> {
-    let key = value.to_ascii_lowercase().replace('_', "-");
-    table
-        .iter()
-        .find(|(k, _)| *k == key)
-        .map(|&(_, v)| v)
-        .ok_or_else(|| {
-            let names: Vec<String> = table.iter().map(|(k, _)| format!("'{k}'")).collect();
-            PyValueError::new_err(format!(
-                "{name} must be one of {}, got '{value}'",
-                names.join(", ")
-            ))
-        })
-}
-
-pub fn algorithm_name(a: Algorithm) -> &'static str {
-    match a {
-        Algorithm::Sweep => "sweep",
-        Algorithm::Level => "level",
-        Algorithm::Naive => "naive",
-        Algorithm::Median => "median",
-    }
-}
-pub fn axes_name(a: Axes) -> &'static str {
-    match a {
-        Axes::Longest => "longest",
-        Axes::All => "all",
-    }
-}
-pub fn counting_name(c: Counting) -> &'static str {
-    match c {
-        Counting::SpaceTree => "space-tree",
-        Counting::Scan => "scan",
-    }
+/// A value of one of the library's named options, by the library's names.
+fn choice<T: std::str::FromStr>(name: &str, value: &str, names: &[&str]) -> PyResult<T> {
+    value.parse::<T>().map_err(|_| {
+        let names: Vec<String> = names.iter().map(|k| format!("'{k}'")).collect();
+        PyValueError::new_err(format!(
+            "{name} must be one of {}, got '{value}'",
+            names.join(", ")
+        ))
+    })
 }
 
 fn type_name(v: &Bound<'_, PyAny>) -> String {
@@ -126,28 +101,12 @@ pub fn build_options(
         threads,
         ..BuildOptions::default()
     };
-    o.algorithm = choice(
-        "algorithm",
-        algorithm,
-        &[
-            ("level", Algorithm::Level),
-            ("sweep", Algorithm::Sweep),
-            ("naive", Algorithm::Naive),
-            ("median", Algorithm::Median),
-        ],
-    )?;
+    o.algorithm = choice("algorithm", algorithm, Algorithm::NAMES)?;
     if let Some(a) = axes {
-        o.axes = choice("axes", a, &[("longest", Axes::Longest), ("all", Axes::All)])?;
+        o.axes = choice("axes", a, Axes::NAMES)?;
     }
     if let Some(c) = counting {
-        o.counting = choice(
-            "counting",
-            c,
-            &[
-                ("scan", Counting::Scan),
-                ("space-tree", Counting::SpaceTree),
-            ],
-        )?;
+        o.counting = choice("counting", c, Counting::NAMES)?;
     }
     if threads == Some(0) {
         return Err(PyValueError::new_err(

@@ -50,11 +50,12 @@ def test_bad_meshes_are_refused_clearly(vertices, faces, error, message):
 @pytest.mark.parametrize(
     "kwargs, error, message",
     [
-        (dict(algorithm="fast"), ValueError, r"algorithm must be one of 'level', 'sweep', 'naive', 'median', got 'fast'"),
+        (dict(algorithm="fast"), ValueError, r"algorithm must be one of 'hybrid', 'sweep', 'level', 'naive', 'median', got 'fast'"),
         (dict(axes="x"), ValueError, r"axes must be one of 'longest', 'all'"),
-        (dict(counting="tree"), ValueError, r"counting must be one of 'scan', 'space-tree'"),
+        (dict(counting="tree"), ValueError, r"counting must be one of 'space-tree', 'scan'"),
         (dict(threads=0), ValueError, r"threads must be at least 1"),
         (dict(threads=-2), ValueError, r"threads must be at least 1 .* got -2"),
+        (dict(threads=100000), ValueError, r"threads: 100000 threads is too many: at most \d+ on this machine"),
         (dict(threads="two"), TypeError, r"threads must be an integer or None, got str"),
         (dict(threads=1.5), TypeError, r"threads must be an integer or None, got float"),
         (dict(threads=True), TypeError, r"threads must be an integer or None, not a bool"),

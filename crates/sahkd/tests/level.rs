@@ -10,6 +10,14 @@ use sahkd::{
     Vec3,
 };
 
+/// The level builder with the default options (the library's default is the hybrid).
+fn level_options() -> BuildOptions {
+    BuildOptions {
+        algorithm: Algorithm::Level,
+        ..BuildOptions::default()
+    }
+}
+
 /// A small deterministic generator (no dependency needed for test data).
 struct Rng(u64);
 
@@ -173,7 +181,7 @@ fn variants() -> Vec<BuildOptions> {
                     counting,
                     axes,
                     clip,
-                    ..BuildOptions::default()
+                    ..level_options()
                 });
             }
         }
@@ -267,7 +275,7 @@ fn large_nodes_build_the_same_tree_on_any_pool() {
                 threads: Some(threads),
                 counting,
                 clip,
-                ..BuildOptions::default()
+                ..level_options()
             };
             let b = build_tree(&tris, &o);
             let case = format!("clip {clip}, {threads} threads, {counting:?}");
@@ -295,7 +303,7 @@ fn space_tree_scan_and_naive_build_the_same_tree() {
                 let base = BuildOptions {
                     axes,
                     clip,
-                    ..BuildOptions::default()
+                    ..level_options()
                 };
                 let scan = build_tree(
                     &tris,
@@ -404,7 +412,7 @@ fn root_split_is_the_brute_force_best() {
                     axes,
                     counting,
                     clip: seed % 2 == 0,
-                    ..BuildOptions::default()
+                    ..level_options()
                 };
                 let tree = build_tree(&tris, &options).tree;
                 let root = tree.nodes()[0];
@@ -584,7 +592,7 @@ impl LeafRefs for KdTree {
 fn identical_triangles_end_in_one_leaf_and_planar_scene_splits() {
     let v = Vec3::new;
     let same = vec![[v(0., 0., 0.), v(1., 0., 0.5), v(0., 1., 1.)]; 10_000];
-    let tree = build_tree(&same, &BuildOptions::default()).tree;
+    let tree = build_tree(&same, &level_options()).tree;
     // No plane strictly inside the box separates identical triangles profitably.
     assert_eq!(tree.nodes().len(), 1);
     assert_eq!(tree.refs().len(), 10_000);
@@ -654,12 +662,12 @@ fn scene_test(file: &str, rays: usize) {
         return;
     };
     for options in [
-        BuildOptions::default(),
+        level_options(),
         BuildOptions::paper(),
         BuildOptions {
             counting: Counting::SpaceTree,
             axes: Axes::All,
-            ..BuildOptions::default()
+            ..level_options()
         },
     ] {
         let built = build(&mesh, &options).unwrap();

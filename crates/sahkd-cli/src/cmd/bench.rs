@@ -11,6 +11,7 @@ use crate::bench::{
 };
 use crate::input::{self, Loaded, MeshArg};
 use crate::options::{algorithm_name, AlgorithmArg, Builder, DeviceArg, Switch};
+use crate::output;
 use crate::progress::Progress;
 use anyhow::{bail, Context as _, Result};
 use indicatif::ProgressBar;
@@ -45,9 +46,10 @@ pub struct Args {
     )]
     pub algorithms: Vec<AlgorithmArg>,
 
-    /// Thread counts, comma-separated (the serial sweep runs once, at the smallest)
+    /// Thread counts, comma-separated, each at most 4 per core (64 on any machine); the
+    /// serial sweep runs once, at the smallest
     #[arg(long, value_name = "LIST", value_delimiter = ',', default_value = "1,2,4,8",
-          value_parser = parse_thread_count)]
+          value_parser = crate::options::parse_threads)]
     pub threads: Vec<usize>,
 
     /// Timed builds per measurement, after one warm-up build; the median is reported
@@ -99,14 +101,6 @@ pub struct Args {
     pub out: PathBuf,
 }
 
-fn parse_thread_count(s: &str) -> Result<usize, String> {
-    match s.trim().parse::<usize>() {
-        Ok(n) if (1..=1024).contains(&n) => Ok(n),
-        Ok(n) => Err(format!("thread counts must be 1 to 1024, found {n}")),
-        Err(_) => Err(format!("expected a thread count, found `{s}`")),
-    }
-}
-
 /// A scene to measure, and the paper's row it stands in for.
 struct Scene {
     paper: Option<PaperScene>,
@@ -129,11 +123,23 @@ impl Scene {
 
 pub fn run(args: Args, context: &Context) -> Result<()> {
     let start = Instant::now();
-    let command = std::env::args().collect::<Vec<_>>().join(" ");
     let progress = Progress::new(context.quiet, false);
-    check_writable(&args.out)?;
+    let created = check_writable(&args.out)?;
+    let result = measure_and_write(&args, context, &progress, start);
+    if result.is_err() {
+        remove_if_empty(&created);
+    }
+    result
+}
 
-    let settings = settings(&args);
+fn measure_and_write(
+    args: &Args,
+    context: &Context,
+    progress: &Progress,
+    start: Instant,
+) -> Result<()> {
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let settings = settings(args);
     if args.device == DeviceArg::Gpu {
         // Refused before any work, with the error `build --device gpu` gives.
         crate::gpu::check(&BuildOptions {
@@ -141,7 +147,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
             ..settings.build_options
         })?;
     }
-    let scenes = load_scenes(&args, context, &progress)?;
+    let scenes = load_scenes(args, context, progress)?;
     let mut machine = Machine::describe();
 
     let bar = progress.bar(total_steps(&scenes, &settings), "measuring");
@@ -177,12 +183,32 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
 }
 
 /// Creates the output folder and makes sure a file can be written there before any work.
-fn check_writable(out: &Path) -> Result<()> {
+/// Returns the folders it created, deepest first, for [`remove_if_empty`].
+fn check_writable(out: &Path) -> Result<Vec<PathBuf>> {
+    let created: Vec<PathBuf> = out
+        .ancestors()
+        .filter(|p| !p.as_os_str().is_empty())
+        .take_while(|p| !p.exists())
+        .map(Path::to_path_buf)
+        .collect();
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create the output folder {}", out.display()))?;
-    tempfile::NamedTempFile::new_in(out)
-        .with_context(|| format!("cannot write to the output folder {}", out.display()))?;
-    Ok(())
+    let checked = tempfile::NamedTempFile::new_in(out)
+        .with_context(|| format!("cannot write to the output folder {}", out.display()));
+    if let Err(e) = checked {
+        remove_if_empty(&created);
+        return Err(e);
+    }
+    Ok(created)
+}
+
+/// Removes the folders a failed run created, as long as nothing was written into them.
+fn remove_if_empty(created: &[PathBuf]) {
+    for folder in created {
+        if std::fs::remove_dir(folder).is_err() {
+            break;
+        }
+    }
 }
 
 fn settings(args: &Args) -> Settings {
@@ -436,16 +462,14 @@ fn measure_levels(
     Ok(curves)
 }
 
+/// Every file whole or not at all (`crate::output`).
 fn write_outputs(out: &Path, results: &Results) -> Result<()> {
-    let write = |name: &str, bytes: &[u8]| {
-        let path = out.join(name);
-        std::fs::write(&path, bytes).with_context(|| format!("cannot write {}", path.display()))
-    };
+    let write = |name: &str, bytes: &[u8]| output::write(&out.join(name), |w| w.write_all(bytes));
     let json = serde_json::to_string_pretty(results).context("cannot encode results.json")?;
     write("results.json", json.as_bytes())?;
     write("table1.md", table::markdown(results).as_bytes())?;
-    charts::table1(&out.join("table1.png"), results)?;
-    charts::fig1(&out.join("fig1_levels.png"), results)?;
-    charts::fig2(&out.join("fig2_speedup.png"), results)?;
+    output::write_at(&out.join("table1.png"), |p| charts::table1(p, results))?;
+    output::write_at(&out.join("fig1_levels.png"), |p| charts::fig1(p, results))?;
+    output::write_at(&out.join("fig2_speedup.png"), |p| charts::fig2(p, results))?;
     Ok(())
 }

@@ -48,6 +48,8 @@ pub struct Report<'a> {
     load_ms: f64,
     build_ms: f64,
     presort_ms: f64,
+    /// Hybrid builder: the subtrees built depth first after the level passes.
+    subtrees_ms: f64,
     sah_cost: f64,
     nodes: usize,
     interior: usize,
@@ -59,6 +61,7 @@ pub struct Report<'a> {
     mean_leaf_size: f64,
     bytes: usize,
     peak_working_bytes: usize,
+    peak_working_bytes_per_triangle: f64,
     /// `null` unless `--validate` was given.
     valid: Option<bool>,
     levels: &'a [LevelReport],
@@ -141,6 +144,7 @@ impl Built {
             load_ms: self.loaded.load_ms,
             build_ms: report.build_ms,
             presort_ms: report.presort_ms,
+            subtrees_ms: report.subtrees_ms,
             sah_cost: stats.sah_cost,
             nodes: stats.nodes,
             interior: stats.interior,
@@ -152,6 +156,8 @@ impl Built {
             mean_leaf_size: stats.mean_leaf_size,
             bytes: stats.bytes,
             peak_working_bytes: report.peak_working_bytes,
+            peak_working_bytes_per_triangle: report.peak_working_bytes as f64
+                / self.loaded.mesh.triangles.len().max(1) as f64,
             valid,
             levels: &report.levels,
         }
@@ -221,7 +227,12 @@ impl Built {
             .row("tree size", format::bytes(stats.bytes as u64))
             .row(
                 "peak working memory",
-                format::bytes(report.peak_working_bytes as u64),
+                format!(
+                    "{} ({:.0} bytes per triangle)",
+                    format::bytes(report.peak_working_bytes as u64),
+                    report.peak_working_bytes as f64
+                        / self.loaded.mesh.triangles.len().max(1) as f64
+                ),
             );
         t
     }

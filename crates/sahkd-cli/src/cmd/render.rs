@@ -4,20 +4,19 @@
 use super::build::{Built, Report as BuildReport};
 use super::Context;
 use crate::format;
-use crate::input::MeshArg;
+use crate::input::{MeshArg, Source};
 use crate::options::BuilderArgs;
+use crate::output;
 use crate::progress::Progress;
-use anyhow::{bail, Context as _, Result};
+use anyhow::{bail, Result};
 use clap::ValueEnum;
 use image::{ExtendedColorType, ImageEncoder};
 use sahkd::render::{render, Camera, Image, RayCounts, RenderOptions, Shading};
 use sahkd::{KdTree, Vec3};
 use serde::Serialize;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
-use tempfile::NamedTempFile;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -130,11 +129,15 @@ impl Args {
     }
 
     fn render_options(&self, tree: &KdTree) -> RenderOptions {
+        self.render_options_with(self.camera(tree))
+    }
+
+    fn render_options_with(&self, camera: Camera) -> RenderOptions {
         RenderOptions {
             shading: self.shading.into(),
             spp: self.spp,
             ao_samples: self.ao_samples,
-            ..RenderOptions::new(self.width, self.height, self.camera(tree))
+            ..RenderOptions::new(self.width, self.height, camera)
         }
     }
 }
@@ -167,8 +170,12 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
     let progress = Progress::new(context.quiet, args.json);
     // Everything the user can get wrong is checked before the long steps; the picture goes
     // to a temporary file beside the output, renamed over it only once it is complete.
-    let temporary = temporary_output(&args.output)?;
+    check_output(&args.output, &args.mesh)?;
     let builder = args.builder.builder()?;
+    // The picture's own limits (size, samples) need no tree: checked with a stand-in camera.
+    if let Err(e) = args.render_options_with(standin_camera()).validate() {
+        bail!("cannot render: {e}");
+    }
     let built = Built::new(&args.mesh, &builder, &progress)?;
     let options = args.render_options(&built.build.tree);
     if let Err(e) = options.validate() {
@@ -192,7 +199,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
     bar.finish_and_clear();
 
     let spinner = progress.spinner(format!("writing {}", args.output.display()));
-    let written = write_png(temporary, &args.output, &image);
+    let written = write_png(&args.output, &image);
     spinner.finish_and_clear();
     written?;
 
@@ -311,9 +318,18 @@ fn parse_fov(s: &str) -> Result<f32, String> {
     }
 }
 
-/// A temporary file in the output's directory, after checking that the output is a `.png`
-/// in a directory that exists and can be written to.
-fn temporary_output(path: &Path) -> Result<NamedTempFile> {
+/// A valid camera for checking the picture's options before the tree exists.
+fn standin_camera() -> Camera {
+    Camera {
+        eye: Vec3::new(0.0, 0.0, 1.0),
+        look_at: Vec3::new(0.0, 0.0, 0.0),
+        up: Vec3::new(0.0, 1.0, 0.0),
+        fov_y_degrees: 45.0,
+    }
+}
+
+/// Checks that the output is a `.png` that can be written and is not the mesh file.
+fn check_output(path: &Path, mesh: &MeshArg) -> Result<()> {
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("");
     if !extension.eq_ignore_ascii_case("png") {
         bail!(
@@ -326,43 +342,24 @@ fn temporary_output(path: &Path) -> Result<NamedTempFile> {
             }
         );
     }
-    super::trace::check_output_path(path)?;
-    let directory = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let mut temporary = tempfile::Builder::new();
-    temporary.prefix(".sahkd-render-").suffix(".png.part");
-    // The renamed file should be readable like any other picture, not private (0600).
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        temporary.permissions(std::fs::Permissions::from_mode(0o644));
+    match Source::resolve(&mesh.mesh) {
+        Source::File(mesh_file) => output::check(path, &[&mesh_file]),
+        Source::Scene(_) => output::check(path, &[]),
     }
-    temporary
-        .tempfile_in(directory)
-        .with_context(|| format!("cannot write {}", path.display()))
 }
 
-/// Encodes the picture into the temporary file and renames it to `path`.
-fn write_png(temporary: NamedTempFile, path: &Path, image: &Image) -> Result<()> {
-    let encode = || -> Result<()> {
-        let mut writer = BufWriter::new(temporary.as_file());
-        image::codecs::png::PngEncoder::new(&mut writer).write_image(
-            &image.rgb,
-            image.width,
-            image.height,
-            ExtendedColorType::Rgb8,
-        )?;
-        writer.flush()?;
-        Ok(())
-    };
-    encode().with_context(|| format!("cannot write {}", path.display()))?;
-    temporary
-        .persist(path)
-        .map_err(|e| e.error)
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(())
+/// Encodes the picture and writes it whole to `path`.
+fn write_png(path: &Path, image: &Image) -> Result<()> {
+    output::write(path, |writer| {
+        image::codecs::png::PngEncoder::new(writer)
+            .write_image(
+                &image.rgb,
+                image.width,
+                image.height,
+                ExtendedColorType::Rgb8,
+            )
+            .map_err(std::io::Error::other)
+    })
 }
 
 #[cfg(test)]

@@ -19,6 +19,7 @@
 //! proportion to their primitives. The root can never be an empty-space cut, since the
 //! scene box is the triangles' own box.
 
+use super::stitch::{self, Piece};
 use super::sweep::{self, Subtree};
 use super::{BuildOptions, BuiltTree, LevelReport, Primitives};
 use crate::clip::clipped_bounds;
@@ -414,7 +415,7 @@ fn build_small_nodes(
     built: &mut BuiltTree,
 ) {
     let small_prims: usize = small.iter().map(|n| n.items.len()).sum();
-    let subtrees: Vec<(Vec<Node>, Vec<u32>)> = small
+    let pieces: Vec<Piece> = small
         .par_iter()
         .map(|node| {
             let n = node.items.len();
@@ -427,38 +428,21 @@ fn build_small_nodes(
             let share = (slack as u128 * n as u128 / small_prims.max(1) as u128) as usize;
             let subtree = Subtree {
                 triangles: &tris,
-                boxes: &boxes,
                 bounds: node.bounds,
                 depth: node.depth,
                 max_depth,
                 budget: n + share,
+                shared_total: None,
             };
             let (mut nodes, mut refs) = (Vec::new(), Vec::new());
-            sweep::build_subtree(&subtree, options, &mut nodes, &mut refs);
+            sweep::build_subtree(&subtree, &boxes, options, &mut nodes, &mut refs);
             for r in refs.iter_mut() {
                 *r = node.items[*r as usize].id;
             }
-            (nodes, refs)
+            Piece { nodes, refs }
         })
         .collect();
-    for (node, (nodes, refs)) in small.iter().zip(subtrees) {
-        let base = built.nodes.len() as u32;
-        let ref_base = built.refs.len() as u32;
-        built.nodes[node.slot as usize] = relocate(&nodes[0], base, ref_base);
-        built
-            .nodes
-            .extend(nodes[1..].iter().map(|n| relocate(n, base, ref_base)));
-        built.refs.extend_from_slice(&refs);
-    }
-}
-
-/// A subtree's node moved into the whole tree: the subtree's root takes its node's slot and
-/// its other nodes `i` (always children, so `i > 0`) go to `base + i - 1`; its references
-/// start at `ref_base`.
-fn relocate(n: &Node, base: u32, ref_base: u32) -> Node {
-    if n.is_leaf() {
-        Node::leaf(n.first() + ref_base, n.count())
-    } else {
-        Node::interior(n.axis(), n.split(), base + n.left() - 1)
+    for (node, piece) in small.iter().zip(&pieces) {
+        stitch::place(built, node.slot as usize, piece);
     }
 }

@@ -4,120 +4,22 @@
 //! builder takes the same [`Primitives`] and returns the same [`BuiltTree`]; [`build`] picks
 //! the builder, runs it on a thread pool of the requested size, and times it.
 
+mod hybrid;
 mod level;
 mod median;
+mod options;
 mod report;
+mod stitch;
 mod sweep;
 
+pub use options::{Algorithm, Axes, BuildOptions, Counting};
 pub use report::{BuildReport, LevelReport, PhaseTimes};
 
-use crate::cost::CostModel;
 use crate::geometry::{triangle_bounds, Aabb, Triangle};
 use crate::mesh::{Mesh, MeshError};
 use crate::tree::{KdTree, Node};
-use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::time::Instant;
-
-/// Which builder to run.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Algorithm {
-    /// Wald & Havran 2006: serial, exact SAH over sorted events, O(N log N).
-    Sweep,
-    /// Li, Tan & Liao: breadth-first, every candidate of a level priced in parallel.
-    #[default]
-    Level,
-    /// The level framework with brute-force counting, O(n) per candidate.
-    Naive,
-    /// The paper's reference [14]: Zhou, Hou, Wang & Guo 2008 as implemented by Chang, Seo &
-    /// Ihm 2015. Breadth-first; large nodes cut off empty space or split at the spatial
-    /// median, small nodes get exact SAH.
-    Median,
-}
-
-/// Which axes a node's candidates come from.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Axes {
-    /// The node's longest axis only (the paper's choice).
-    #[default]
-    Longest,
-    /// All three axes, as exact SAH builders do.
-    All,
-}
-
-/// How the level builder counts the primitives on each side of a candidate.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Counting {
-    /// The paper's walk of the implicit interval tree over the lo-sorted list.
-    SpaceTree,
-    /// Segmented prefix sums over sorted start/end events.
-    #[default]
-    Scan,
-}
-
-/// Everything that decides a build. Same options and input give the same tree, whatever the
-/// number of threads. Fields missing from serialized options take their defaults, so options
-/// saved before a field existed still load.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
-pub struct BuildOptions {
-    pub algorithm: Algorithm,
-    pub axes: Axes,
-    pub counting: Counting,
-    /// Clip straddling triangles to each child ("perfect splits"); off uses the triangles'
-    /// boxes, as the paper does.
-    pub clip: bool,
-    /// Worker threads; `None` uses rayon's global pool (every core).
-    pub threads: Option<usize>,
-    pub cost: CostModel,
-    /// Median builder only: nodes with more primitives than this are "large" (empty-space
-    /// cut or spatial median split); the others get exact SAH.
-    pub median_large_node: u32,
-}
-
-impl Default for BuildOptions {
-    fn default() -> Self {
-        BuildOptions {
-            algorithm: Algorithm::default(),
-            axes: Axes::default(),
-            counting: Counting::default(),
-            clip: true,
-            threads: None,
-            cost: CostModel::default(),
-            median_large_node: 64,
-        }
-    }
-}
-
-impl BuildOptions {
-    /// The paper's builder with its own choices: longest axis, triangle boxes.
-    pub fn paper() -> Self {
-        BuildOptions {
-            algorithm: Algorithm::Level,
-            axes: Axes::Longest,
-            clip: false,
-            ..Self::default()
-        }
-    }
-    /// The best trees: exact SAH over all three axes with perfect splits.
-    pub fn quality() -> Self {
-        BuildOptions {
-            axes: Axes::All,
-            clip: true,
-            ..Self::default()
-        }
-    }
-    /// The serial reference builder.
-    pub fn sweep() -> Self {
-        BuildOptions {
-            algorithm: Algorithm::Sweep,
-            ..Self::default()
-        }
-    }
-}
 
 /// Why a build could not run.
 #[derive(Debug)]
@@ -169,6 +71,7 @@ pub fn build_triangles(
     triangles: Vec<Triangle>,
     options: &BuildOptions,
 ) -> Result<Build, BuildError> {
+    options.validate()?;
     if let Some((i, _)) = triangles
         .iter()
         .enumerate()
@@ -186,10 +89,8 @@ pub fn build_triangles(
         )));
     }
     match options.threads {
-        Some(0) => Err(BuildError::InvalidOptions(
-            "threads must be at least 1".into(),
-        )),
         Some(n) => {
+            let n = crate::threads::check(n).map_err(BuildError::InvalidOptions)?;
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
                 .build()
@@ -221,6 +122,7 @@ fn run(triangles: Vec<Triangle>, options: &BuildOptions) -> Build {
         Algorithm::Sweep => sweep::build(&prims, options),
         Algorithm::Level | Algorithm::Naive => level::build(&prims, options),
         Algorithm::Median => median::build(&prims, options),
+        Algorithm::Hybrid => hybrid::build(&prims, options),
     };
     let mut report = built.report;
     report.build_ms = start.elapsed().as_secs_f64() * 1e3;

@@ -11,8 +11,12 @@ pub struct BuildReport {
     pub presort_ms: f64,
     /// Peak bytes of the builder's working arrays (not counting the finished tree).
     pub peak_working_bytes: usize,
-    /// One entry per tree level, for the breadth-first builders.
+    /// One entry per tree level, for the breadth-first builders (the hybrid builder: the
+    /// levels before its hand-over).
     pub levels: Vec<LevelReport>,
+    /// Wall time of the subtrees built depth first after a hand-over (hybrid builder; 0 for
+    /// the others).
+    pub subtrees_ms: f64,
 }
 
 /// One level of a breadth-first build.

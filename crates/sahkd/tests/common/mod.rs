@@ -230,6 +230,14 @@ pub fn all_variants() -> Vec<BuildOptions> {
     let mut out = Vec::new();
     for clip in [true, false] {
         for axes in [Axes::Longest, Axes::All] {
+            // Three workers: the hand-over comes after a few level passes even on small scenes.
+            out.push(BuildOptions {
+                algorithm: Algorithm::Hybrid,
+                axes,
+                clip,
+                threads: Some(3),
+                ..BuildOptions::default()
+            });
             out.push(BuildOptions {
                 algorithm: Algorithm::Sweep,
                 axes,

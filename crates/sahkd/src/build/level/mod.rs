@@ -34,12 +34,15 @@
 mod candidates;
 mod decision;
 mod entries;
+mod handoff;
 mod naive;
 mod partition;
 mod presort;
 mod scan;
 mod segments;
 mod space_tree;
+
+pub(crate) use handoff::Frontier;
 
 use super::{Algorithm, Axes, BuildOptions, BuiltTree, Counting, LevelReport, Primitives};
 use crate::cost::CostModel;
@@ -136,18 +139,57 @@ impl<E: ListEntry> Level<E> {
 /// Builds with the level framework: `Algorithm::Level` with either counting, or
 /// `Algorithm::Naive`.
 pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
-    match (options.algorithm, options.counting) {
-        (Algorithm::Naive, _) => run::<Span>(prims, options, Mode::Naive),
-        (_, Counting::SpaceTree) => run::<Span>(prims, options, Mode::SpaceTree),
-        (_, Counting::Scan) => run::<Event>(prims, options, Mode::Scan),
+    fn whole<E>(_: &Level<E>) -> bool {
+        false
     }
+    match (options.algorithm, options.counting) {
+        (Algorithm::Naive, _) => run::<Span>(prims, options, Mode::Naive, whole).0,
+        (_, Counting::SpaceTree) => run::<Span>(prims, options, Mode::SpaceTree, whole).0,
+        (_, Counting::Scan) => run::<Event>(prims, options, Mode::Scan, whole).0,
+    }
+}
+
+/// How the reference budget went in a build's level passes.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct BudgetUse {
+    /// Whether the budget refused a split the SAH wanted.
+    pub bound: bool,
+    /// References clipping removed, summed over the splits (before minus after).
+    pub clipped_away: usize,
+}
+
+/// The top of a hybrid build: level passes (scan counting) until `hand_off` says a level's nodes are enough independent work, then that level as a
+/// [`Frontier`] (`None` when the tree was finished first). `hand_off` sees the level's node
+/// count, its references and its biggest node's references.
+pub(crate) fn build_top(
+    prims: &Primitives,
+    options: &BuildOptions,
+    hand_off: impl Fn(usize, usize, usize) -> bool,
+) -> (BuiltTree, Option<Frontier>, BudgetUse) {
+    let stop = |level: &Level<Event>| {
+        let biggest = (0..level.nodes())
+            .map(|k| level.refs(k) as usize)
+            .max()
+            .unwrap_or(0);
+        hand_off(level.nodes(), level.prims.len(), biggest)
+    };
+    let (built, level, budget) = run::<Event>(prims, options, Mode::Scan, stop);
+    let frontier = level.map(|level| Frontier::new(level, built.nodes.len()));
+    (built, frontier, budget)
 }
 
 fn ms_since(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
-fn run<E: ListEntry>(prims: &Primitives, options: &BuildOptions, mode: Mode) -> BuiltTree
+/// The level loop. Stops before pricing the first level `stop` accepts and returns it with
+/// the tree so far, whose next node slots are that level's nodes.
+fn run<E: ListEntry>(
+    prims: &Primitives,
+    options: &BuildOptions,
+    mode: Mode,
+    stop: impl Fn(&Level<E>) -> bool,
+) -> (BuiltTree, Option<Level<E>>, BudgetUse)
 where
     Level<E>: Pricing,
 {
@@ -170,7 +212,12 @@ where
     let mut spare = Level::<E>::empty(sorted);
     let mut scratch = Scratch::default();
     let mut peak = 0usize;
+    let mut budget_use = BudgetUse::default();
     loop {
+        if stop(&level) {
+            out.report.peak_working_bytes = peak.max(level.bytes() + scratch.bytes());
+            return (out, Some(level), budget_use);
+        }
         let mut report = LevelReport {
             depth: level.depth,
             nodes: level.nodes(),
@@ -199,6 +246,7 @@ where
             .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
         report.leaves = leaves;
         if out.refs.len() + leaf_refs + next_refs > ctx.budget {
+            budget_use.bound = true;
             splits.par_iter_mut().for_each(|s| *s = None);
             report.leaves = level.nodes();
         }
@@ -215,6 +263,9 @@ where
             &mut spare,
             &mut scratch.work,
         );
+        if more && level.sorted {
+            budget_use.clipped_away += clipped_away(&splits, &scratch.work, &spare);
+        }
         scratch.splits = splits;
         report.ms.partition = ms_since(t);
         peak = peak.max(level.bytes() + spare.bytes() + scratch.bytes());
@@ -225,7 +276,27 @@ where
         std::mem::swap(&mut level, &mut spare);
     }
     out.report.peak_working_bytes = peak;
-    out
+    (out, None, budget_use)
+}
+
+/// References clipping removed from the children of the level's split nodes (`next` is the
+/// level they make).
+fn clipped_away<E: ListEntry>(
+    splits: &[Option<decision::Split>],
+    work: &partition::Work,
+    next: &Level<E>,
+) -> usize {
+    (0..splits.len())
+        .into_par_iter()
+        .with_min_len(4096)
+        .map(|k| match splits[k] {
+            Some(s) => {
+                let c = work.left_child(k);
+                (s.refs - next.refs(c) - next.refs(c + 1)) as usize
+            }
+            None => 0,
+        })
+        .sum()
 }
 
 /// Per node, a bit mask of the axes whose candidates it prices (0 for a node that is a leaf

@@ -191,6 +191,12 @@ pub(super) struct Work {
 }
 
 impl Work {
+    /// The index in the next level of the left child of the level's node `k`, a split node.
+    pub fn left_child(&self, k: usize) -> usize {
+        debug_assert_ne!(self.left[k], NONE);
+        self.left[k] as usize
+    }
+
     pub fn bytes(&self) -> usize {
         use std::mem::size_of;
         self.left.capacity() * 4

@@ -7,7 +7,7 @@
 
 use crate::geometry::Aabb;
 
-pub(super) type Event = u64;
+pub(crate) type Event = u64;
 
 /// The primitive's box ends here.
 pub(super) const END: u64 = 0;

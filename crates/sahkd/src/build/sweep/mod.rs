@@ -7,16 +7,20 @@
 //! stack, left child before right, both children's slots allocated together.
 //!
 //! [`build_subtree`] builds below any node, not only the root: the median builder hands it
-//! its small nodes.
+//! its small nodes. [`build_subtree_sorted`] starts from events already sorted elsewhere (the
+//! hybrid builder hands over the level builder's lists, which use the same encoding).
 
 mod events;
 mod partition;
 mod search;
 
+pub(crate) use events::Event;
+
 use super::{BuildOptions, BuiltTree, Primitives};
 use crate::geometry::{Aabb, Triangle};
 use crate::tree::Node;
 use partition::{Segment, Workspace};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 /// A node waiting to be built: its slot, box, depth, primitive count and events.
@@ -32,14 +36,20 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
     let total_prims = prims.triangles.len();
     let subtree = Subtree {
         triangles: prims.triangles,
-        boxes: &prims.boxes,
         bounds: prims.bounds,
         depth: 0,
         max_depth: options.cost.max_depth_for(total_prims),
         budget: options.cost.reference_budget(total_prims),
+        shared_total: None,
     };
     let mut built = BuiltTree::default();
-    let report = build_subtree(&subtree, options, &mut built.nodes, &mut built.refs);
+    let report = build_subtree(
+        &subtree,
+        &prims.boxes,
+        options,
+        &mut built.nodes,
+        &mut built.refs,
+    );
     built.report.presort_ms = report.presort_ms;
     built.report.peak_working_bytes = report.peak_working_bytes;
     built
@@ -47,30 +57,70 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
 
 /// A node to build the whole subtree of, with the limits that come from the whole tree.
 pub(crate) struct Subtree<'a> {
-    /// The node's primitives: their triangles (for clipping) and their boxes within `bounds`.
-    /// Primitive `i` here is `triangles[i]`; the leaves reference these local indices.
+    /// The node's primitives' triangles (for clipping). Primitive `i` here is `triangles[i]`;
+    /// the leaves reference these local indices.
     pub triangles: &'a [Triangle],
-    pub boxes: &'a [Aabb],
     /// The node's box.
     pub bounds: Aabb,
     /// The node's depth in the whole tree.
     pub depth: u32,
     /// The whole tree's depth limit.
     pub max_depth: u32,
-    /// The most references the subtree's leaves may hold together.
+    /// The most references the subtree's leaves may hold together: a running total, checked
+    /// depth first (Wald and Havran's rule).
     pub budget: usize,
+    /// With subtrees built at once: the references of the whole tree so far, which every
+    /// split adds to and which must stay within `budget` too (a guard on memory: the order of
+    /// the additions varies, so a build that hits it is not deterministic, see `hybrid`).
+    pub shared_total: Option<&'a AtomicUsize>,
 }
 
 /// What building a subtree took.
 pub(crate) struct SubtreeReport {
     pub presort_ms: f64,
     pub peak_working_bytes: usize,
+    /// Whether the budget refused a split the SAH wanted.
+    pub budget_bound: bool,
+    /// References clipping removed, summed over the splits (before minus after).
+    pub clipped_away: usize,
 }
 
-/// Builds the subtree of `subtree`'s node, appending its nodes to `nodes` (its root first,
-/// at the index `nodes.len()` had on entry) and its leaves' references to `refs`.
+/// Builds the subtree of `subtree`'s node from its primitives' `boxes` (within the node's
+/// box), appending its nodes to `nodes` (its root first, at the index `nodes.len()` had on
+/// entry) and its leaves' references to `refs`.
 pub(crate) fn build_subtree(
     subtree: &Subtree,
+    boxes: &[Aabb],
+    options: &BuildOptions,
+    nodes: &mut Vec<Node>,
+    refs: &mut Vec<u32>,
+) -> SubtreeReport {
+    let presort = Instant::now();
+    let work = Workspace::new(boxes);
+    let presort_ms = presort.elapsed().as_secs_f64() * 1e3;
+    SubtreeReport {
+        presort_ms,
+        ..grow(subtree, work, options, nodes, refs)
+    }
+}
+
+/// As [`build_subtree`], from each axis's events of the node's primitives (local indices,
+/// sorted by the event order), without sorting again.
+pub(crate) fn build_subtree_sorted(
+    subtree: &Subtree,
+    events: [Vec<Event>; 3],
+    options: &BuildOptions,
+    nodes: &mut Vec<Node>,
+    refs: &mut Vec<u32>,
+) -> SubtreeReport {
+    let work = Workspace::from_sorted(events, subtree.triangles.len());
+    grow(subtree, work, options, nodes, refs)
+}
+
+/// The depth-first loop over the node's subtree (its report's `presort_ms` is 0).
+fn grow(
+    subtree: &Subtree,
+    mut work: Workspace,
     options: &BuildOptions,
     nodes: &mut Vec<Node>,
     refs: &mut Vec<u32>,
@@ -78,21 +128,19 @@ pub(crate) fn build_subtree(
     let cost = &options.cost;
     let (max_depth, budget) = (subtree.max_depth, subtree.budget);
     let clip = options.clip.then_some(subtree.triangles);
-
-    let presort = Instant::now();
-    let mut work = Workspace::new(subtree.boxes);
-    let presort_ms = presort.elapsed().as_secs_f64() * 1e3;
+    let n = subtree.triangles.len();
 
     let root = nodes.len() as u32;
     nodes.push(Node::leaf(0, 0));
     // References held by the finished leaves and the pending nodes: the running total the
     // reference budget applies to.
-    let mut references = subtree.boxes.len();
+    let mut references = n;
+    let (mut budget_bound, mut clipped_away) = (false, 0);
     let mut stack = vec![Pending {
         slot: root,
         bounds: subtree.bounds,
         depth: subtree.depth,
-        n: subtree.boxes.len() as u32,
+        n: n as u32,
         events: [0; 3],
     }];
     while let Some(node) = stack.pop() {
@@ -106,9 +154,15 @@ pub(crate) fn build_subtree(
                 options.axes,
                 cost,
             )
+            .filter(|s| s.cost < cost.leaf_cost(node.n))
             .filter(|s| {
-                s.cost < cost.leaf_cost(node.n)
-                    && references + (s.n_left + s.n_right - node.n) as usize <= budget
+                let extra = (s.n_left + s.n_right - node.n) as usize;
+                let fits = references + extra <= budget
+                    && subtree.shared_total.is_none_or(|total| {
+                        total.fetch_add(extra, Ordering::Relaxed) + extra <= budget
+                    });
+                budget_bound |= !fits;
+                fits
             })
         };
         let Some(split) = split else {
@@ -124,6 +178,8 @@ pub(crate) fn build_subtree(
         nodes.extend([Node::leaf(0, 0); 2]);
         let children = work.split(&node.events, &node.bounds, &split, clip);
         references = references + (children.n_left + children.n_right) as usize - node.n as usize;
+        clipped_away +=
+            (split.n_left + split.n_right - children.n_left - children.n_right) as usize;
         let (left_box, right_box) = node.bounds.split(split.axis, split.pos);
         let depth = node.depth + 1;
         stack.push(Pending {
@@ -142,7 +198,9 @@ pub(crate) fn build_subtree(
         });
     }
     SubtreeReport {
-        presort_ms,
+        presort_ms: 0.0,
         peak_working_bytes: work.peak_bytes(),
+        budget_bound,
+        clipped_away,
     }
 }

@@ -59,13 +59,21 @@ impl Workspace {
             }
             events::sort_prim_ordered(list, &mut scratch);
         }
+        let mut work = Workspace::from_sorted(arena, boxes.len());
+        work.tmp_left = scratch;
+        work
+    }
+
+    /// A root node whose events on each axis (`prims` primitives, local indices) come sorted.
+    pub fn from_sorted(arena: [Vec<Event>; 3], prims: usize) -> Workspace {
+        debug_assert!(arena.iter().all(|l| l.windows(2).all(|w| w[0] < w[1])));
         let peak_events = arena.iter().map(Vec::len).sum();
         Workspace {
             arena,
-            tmp_left: scratch,
+            tmp_left: Vec::new(),
             new_left: Default::default(),
             new_right: Default::default(),
-            side: vec![NEITHER; boxes.len()],
+            side: vec![NEITHER; prims],
             straddlers: Vec::new(),
             peak_events,
         }

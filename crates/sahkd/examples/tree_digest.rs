@@ -1,0 +1,115 @@
+//! A digest of the trees a builder makes, to check that a change keeps them bit-identical.
+//!
+//! `cargo run --release -p sahkd --example tree_digest -- [--algorithm sweep] [--threads 1]
+//! bunny dragon_res2 dragon`
+//!
+//! For each scene and each of `--axes longest|all` x `--clip on|off` it prints one line: an
+//! FNV-1a hash over every node (axis, split-position bits, child index or first reference and
+//! count) and every reference, then the node and reference counts and the build time. Scenes
+//! are read from `$SAHKD_SCENES` or `../shared/scenes` (relative to the workspace).
+
+use sahkd::{build_triangles, Algorithm, Axes, BuildOptions, KdTree, Mesh};
+use std::path::PathBuf;
+
+fn scenes_dir() -> PathBuf {
+    std::env::var_os("SAHKD_SCENES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes"))
+}
+
+/// FNV-1a over 32-bit words: simple, stable across Rust versions and platforms.
+struct Fnv(u64);
+
+impl Fnv {
+    fn word(&mut self, w: u32) {
+        for b in w.to_le_bytes() {
+            self.0 ^= b as u64;
+            self.0 = self.0.wrapping_mul(0x100_0000_01b3);
+        }
+    }
+}
+
+fn digest(tree: &KdTree) -> u64 {
+    let mut h = Fnv(0xcbf2_9ce4_8422_2325);
+    for node in tree.nodes() {
+        if node.is_leaf() {
+            h.word(3);
+            h.word(node.first());
+            h.word(node.count());
+        } else {
+            h.word(node.axis() as u32);
+            h.word(node.split().to_bits());
+            h.word(node.left());
+        }
+    }
+    for &r in tree.refs() {
+        h.word(r);
+    }
+    h.0
+}
+
+fn main() {
+    let mut algorithm = Algorithm::Sweep;
+    let mut threads = Some(1);
+    let mut names = Vec::new();
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--algorithm" => {
+                let name = args.next().unwrap_or_default();
+                algorithm = serde_json::from_value(serde_json::Value::String(name.clone()))
+                    .unwrap_or_else(|_| {
+                        eprintln!("error: unknown --algorithm {name}");
+                        std::process::exit(2)
+                    });
+            }
+            "--threads" => {
+                threads = match args.next().and_then(|v| v.parse().ok()) {
+                    Some(n) => Some(n),
+                    None => {
+                        eprintln!("error: --threads needs a positive number");
+                        std::process::exit(2)
+                    }
+                }
+            }
+            _ => names.push(a),
+        }
+    }
+    let dir = scenes_dir();
+    println!("scene\taxes\tclip\tdigest\tnodes\trefs\tbuild ms");
+    for name in &names {
+        let tris = match Mesh::load(dir.join(format!("{name}.ply"))) {
+            Ok(m) => m.corner_triangles(),
+            Err(e) => {
+                eprintln!("skipping {name}: {e}");
+                continue;
+            }
+        };
+        for axes in [Axes::Longest, Axes::All] {
+            for clip in [true, false] {
+                let options = BuildOptions {
+                    algorithm,
+                    axes,
+                    clip,
+                    threads,
+                    ..BuildOptions::default()
+                };
+                let b = match build_triangles(tris.clone(), &options) {
+                    Ok(b) => b,
+                    Err(e) => {
+                        eprintln!("error: {name}: {e}");
+                        std::process::exit(1)
+                    }
+                };
+                println!(
+                    "{name}\t{axes:?}\t{}\t{:016x}\t{}\t{}\t{:.0}",
+                    if clip { "on" } else { "off" },
+                    digest(&b.tree),
+                    b.tree.nodes().len(),
+                    b.tree.refs().len(),
+                    b.report.build_ms
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,138 @@
+//! The hybrid builder: the paper's level passes at the top of the tree, where a few big nodes
+//! hold all the work and only parallelism within a node helps; then, once a level holds
+//! enough independent nodes, each node's whole subtree by the sweep on one worker, from the
+//! node's sorted lists as they are (no second sort). The subtrees are placed in the sweep's
+//! own layout (`stitch::depth_first`), so nodes and references come out as the sweep's,
+//! array for array.
+//!
+//! Both parts follow the sweep's split rules, so where the reference budget refuses no split
+//! the tree is the sweep's whatever level the hand-over happens at. The sweep checks the
+//! budget as a running total in depth-first order, which subtrees built at once cannot
+//! follow; here the level passes check it per level and the subtrees against one shared
+//! total, as a guard on memory. When nothing was refused and the whole tree's references,
+//! plus those clipping removed, fit the budget, the sweep's running total (never more than
+//! that sum) could not have refused a split either: the tree is the sweep's. Otherwise (a
+//! budget that binds: needles across a scene, say) the sweep builds it. Either way the tree
+//! is the same on any number of threads.
+
+use super::level;
+use super::stitch::{self, Piece};
+use super::sweep::{self, Subtree, SubtreeReport};
+use super::{BuildOptions, BuiltTree, Primitives};
+use crate::geometry::Triangle;
+use crate::tree::Node;
+use rayon::prelude::*;
+use std::sync::atomic::AtomicUsize;
+use std::time::Instant;
+
+/// Nodes per worker a level must hold before it is handed over.
+const NODES_PER_THREAD: usize = 8;
+/// A level is handed over once its biggest node holds at most this share of its references
+/// (so one subtree cannot keep one worker busy long after the others), or once it holds
+/// `SPREAD_NODES_PER_THREAD` nodes per worker whatever their sizes.
+const BIGGEST_SHARE: usize = 4;
+const SPREAD_NODES_PER_THREAD: usize = 64;
+
+/// Whether a level of `nodes` nodes and `refs` references, the biggest node holding
+/// `biggest`, is enough independent work for `threads` workers. One worker hands over the
+/// root: the level passes only pay off in parallel.
+pub(crate) fn hand_off(threads: usize, nodes: usize, refs: usize, biggest: usize) -> bool {
+    threads <= 1
+        || (nodes >= NODES_PER_THREAD * threads
+            && (biggest * BIGGEST_SHARE <= refs || nodes >= SPREAD_NODES_PER_THREAD * threads))
+}
+
+pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
+    let threads = rayon::current_num_threads();
+    let (built, frontier, mut budget_use) =
+        level::build_top(prims, options, |nodes, refs, biggest| {
+            hand_off(threads, nodes, refs, biggest)
+        });
+    let budget = options.cost.reference_budget(prims.triangles.len());
+    let the_sweeps = |budget_use: level::BudgetUse, refs: usize| {
+        !budget_use.bound && refs + budget_use.clipped_away <= budget
+    };
+    let Some(frontier) = frontier else {
+        if !the_sweeps(budget_use, built.refs.len()) {
+            return sweep::build(prims, options);
+        }
+        // The sweep's layout of the level passes' tree.
+        let mut tree = stitch::depth_first(&built, built.nodes.len(), &[]);
+        tree.report = built.report;
+        return tree;
+    };
+    let start = Instant::now();
+    let max_depth = options.cost.max_depth_for(prims.triangles.len());
+    let first_slot = frontier.first_slot;
+    let held = built.refs.len()
+        + (0..frontier.nodes())
+            .map(|k| frontier.refs(k))
+            .sum::<usize>();
+    let shared_total = AtomicUsize::new(held);
+    // Biggest first, one node per task, so that the last subtrees to start are small ones.
+    let mut order: Vec<usize> = (0..frontier.nodes()).collect();
+    order.sort_by_key(|&k| std::cmp::Reverse(frontier.refs(k)));
+    let mut pieces: Vec<(usize, Piece, Option<SubtreeReport>)> = order
+        .into_par_iter()
+        .with_max_len(1)
+        .map(|k| {
+            let node = frontier.node(k);
+            let n = node.prims.len();
+            if n as u32 <= options.cost.leaf_size || node.depth >= max_depth {
+                // A leaf by the leaf rules: the level passes made no lists for it.
+                let piece = Piece {
+                    nodes: vec![Node::leaf(0, n as u32)],
+                    refs: node.prims.to_vec(),
+                };
+                return (k, piece, None);
+            }
+            let triangles: Vec<Triangle> = node
+                .prims
+                .iter()
+                .map(|&p| prims.triangles[p as usize])
+                .collect();
+            let subtree = Subtree {
+                triangles: &triangles,
+                bounds: node.bounds,
+                depth: node.depth,
+                max_depth,
+                budget,
+                shared_total: Some(&shared_total),
+            };
+            let mut piece = Piece {
+                nodes: Vec::new(),
+                refs: Vec::new(),
+            };
+            let report = sweep::build_subtree_sorted(
+                &subtree,
+                node.events,
+                options,
+                &mut piece.nodes,
+                &mut piece.refs,
+            );
+            for r in piece.refs.iter_mut() {
+                *r = node.prims[*r as usize];
+            }
+            (k, piece, Some(report))
+        })
+        .collect();
+    pieces.sort_unstable_by_key(|p| p.0);
+    let mut subtree_peak = 0;
+    for report in pieces.iter().filter_map(|p| p.2.as_ref()) {
+        subtree_peak = subtree_peak.max(report.peak_working_bytes);
+        budget_use.bound |= report.budget_bound;
+        budget_use.clipped_away += report.clipped_away;
+    }
+    let pieces: Vec<Piece> = pieces.into_iter().map(|p| p.1).collect();
+    drop(frontier);
+    let refs = built.refs.len() + pieces.iter().map(|p| p.refs.len()).sum::<usize>();
+    if !the_sweeps(budget_use, refs) {
+        return sweep::build(prims, options);
+    }
+    let mut tree = stitch::depth_first(&built, first_slot, &pieces);
+    tree.report = built.report;
+    let report = &mut tree.report;
+    report.subtrees_ms = start.elapsed().as_secs_f64() * 1e3;
+    report.peak_working_bytes = report.peak_working_bytes.max(subtree_peak * threads);
+    tree
+}

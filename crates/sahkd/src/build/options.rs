@@ -1,0 +1,283 @@
+//! Every parameter of a build, with its defaults, its names and its valid ranges, in one
+//! place: the command line and Python take names and ranges from here.
+
+use super::BuildError;
+use crate::cost::{CostModel, MAX_DEPTH_CAP};
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::str::FromStr;
+
+/// Which builder to run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Algorithm {
+    /// The level passes at the top of the tree, then each node's subtree by the sweep on
+    /// one worker: the sweep's tree, on every core.
+    #[default]
+    Hybrid,
+    /// Wald & Havran 2006: serial, exact SAH over sorted events, O(N log N).
+    Sweep,
+    /// Li, Tan & Liao: breadth-first, every candidate of a level priced in parallel.
+    Level,
+    /// The level framework with brute-force counting, O(n) per candidate.
+    Naive,
+    /// The paper's reference [14]: Zhou, Hou, Wang & Guo 2008 as implemented by Chang, Seo &
+    /// Ihm 2015. Breadth-first; large nodes cut off empty space or split at the spatial
+    /// median, small nodes get exact SAH.
+    Median,
+}
+
+/// Which axes a node's candidates come from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Axes {
+    /// The node's longest axis only (the paper's choice).
+    #[default]
+    Longest,
+    /// All three axes, as exact SAH builders do.
+    All,
+}
+
+/// How the level builder counts the primitives on each side of a candidate.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Counting {
+    /// The paper's walk of the implicit interval tree over the lo-sorted list.
+    SpaceTree,
+    /// Segmented prefix sums over sorted start/end events.
+    #[default]
+    Scan,
+}
+
+/// Everything that decides a build. Same options and input give the same tree, whatever the
+/// number of threads. Fields missing from serialized options take their defaults, so options
+/// saved before a field existed still load.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct BuildOptions {
+    pub algorithm: Algorithm,
+    pub axes: Axes,
+    pub counting: Counting,
+    /// Clip straddling triangles to each child ("perfect splits"); off uses the triangles'
+    /// boxes, as the paper does.
+    pub clip: bool,
+    /// Worker threads; `None` uses rayon's global pool (every core).
+    pub threads: Option<usize>,
+    pub cost: CostModel,
+    /// Median builder only: nodes with more primitives than this are "large" (empty-space
+    /// cut or spatial median split); the others get exact SAH.
+    pub median_large_node: u32,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        BuildOptions {
+            algorithm: Algorithm::default(),
+            axes: Axes::default(),
+            counting: Counting::default(),
+            clip: true,
+            threads: None,
+            cost: CostModel::default(),
+            median_large_node: 64,
+        }
+    }
+}
+
+impl BuildOptions {
+    /// The paper's builder with its own choices: longest axis, triangle boxes.
+    pub fn paper() -> Self {
+        BuildOptions {
+            algorithm: Algorithm::Level,
+            axes: Axes::Longest,
+            clip: false,
+            ..Self::default()
+        }
+    }
+    /// The best trees: exact SAH over all three axes with perfect splits.
+    pub fn quality() -> Self {
+        BuildOptions {
+            axes: Axes::All,
+            clip: true,
+            ..Self::default()
+        }
+    }
+    /// The serial reference builder.
+    pub fn sweep() -> Self {
+        BuildOptions {
+            algorithm: Algorithm::Sweep,
+            ..Self::default()
+        }
+    }
+}
+
+/// The names of an option's values: `Display` writes them, `FromStr` reads them (case and
+/// `_`/`-` insensitive), and `NAMES` lists them for help texts and errors.
+macro_rules! named_values {
+    ($ty:ident, $what:literal, $($variant:ident => $name:literal),+ $(,)?) => {
+        impl $ty {
+            /// Every value, in the order of `NAMES`.
+            pub const ALL: &'static [$ty] = &[$($ty::$variant),+];
+            /// The names of the values, as the command line and Python spell them.
+            pub const NAMES: &'static [&'static str] = &[$($name),+];
+            pub fn name(self) -> &'static str {
+                match self {
+                    $($ty::$variant => $name),+
+                }
+            }
+        }
+        impl fmt::Display for $ty {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+        impl FromStr for $ty {
+            type Err = String;
+            fn from_str(s: &str) -> Result<Self, String> {
+                let key = s.trim().to_ascii_lowercase().replace('_', "-");
+                $ty::ALL.iter().copied().find(|v| v.name() == key).ok_or_else(|| {
+                    format!(
+                        "unknown {} `{s}`: expected one of {}",
+                        $what,
+                        $ty::NAMES.join(", ")
+                    )
+                })
+            }
+        }
+    };
+}
+
+named_values!(Algorithm, "algorithm",
+    Hybrid => "hybrid", Sweep => "sweep", Level => "level", Naive => "naive", Median => "median");
+named_values!(Axes, "axes", Longest => "longest", All => "all");
+named_values!(Counting, "counting", SpaceTree => "space-tree", Scan => "scan");
+
+impl BuildOptions {
+    /// Checks every parameter's range, naming the first one out of it. `build` and
+    /// `build_triangles` call it; front ends may call it early.
+    pub fn validate(&self) -> Result<(), BuildError> {
+        let bad = |m: String| Err(BuildError::InvalidOptions(m));
+        let c = &self.cost;
+        if !(c.traversal.is_finite() && c.traversal >= 0.0) {
+            return bad(format!(
+                "traversal cost (K_T) must be a finite number of at least 0, got {}",
+                c.traversal
+            ));
+        }
+        if !(c.intersection.is_finite() && c.intersection > 0.0) {
+            return bad(format!(
+                "intersection cost (K_I) must be a finite number above 0, got {}",
+                c.intersection
+            ));
+        }
+        if !(c.empty_bonus > 0.0 && c.empty_bonus <= 1.0) {
+            return bad(format!(
+                "empty_bonus must be in (0, 1] (1 disables the bonus), got {}",
+                c.empty_bonus
+            ));
+        }
+        if !(c.max_duplication.is_finite() && c.max_duplication >= 1.0) {
+            return bad(format!(
+                "max_duplication must be a finite number of at least 1, got {}",
+                c.max_duplication
+            ));
+        }
+        if let Some(d) = c.max_depth.filter(|&d| d > MAX_DEPTH_CAP) {
+            return bad(format!(
+                "max_depth must be at most {MAX_DEPTH_CAP}, got {d}"
+            ));
+        }
+        if self.threads == Some(0) {
+            return bad("threads must be at least 1".into());
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_read_back_and_bad_names_list_the_good_ones() {
+        for &a in Algorithm::ALL {
+            assert_eq!(a.to_string().parse::<Algorithm>(), Ok(a));
+        }
+        for &a in Axes::ALL {
+            assert_eq!(a.to_string().parse::<Axes>(), Ok(a));
+        }
+        assert_eq!("SPACE_TREE".parse::<Counting>(), Ok(Counting::SpaceTree));
+        let err = "quick".parse::<Algorithm>().unwrap_err();
+        assert!(err.contains("quick") && err.contains("hybrid, sweep, level, naive, median"));
+    }
+
+    #[test]
+    fn validate_names_the_parameter_out_of_range() {
+        assert!(BuildOptions::default().validate().is_ok());
+        let with = |cost: CostModel| BuildOptions {
+            cost,
+            ..BuildOptions::default()
+        };
+        let base = CostModel::default();
+        for (options, word) in [
+            (
+                with(CostModel {
+                    empty_bonus: 5.0,
+                    ..base
+                }),
+                "empty_bonus",
+            ),
+            (
+                with(CostModel {
+                    empty_bonus: 0.0,
+                    ..base
+                }),
+                "empty_bonus",
+            ),
+            (
+                with(CostModel {
+                    traversal: -1.0,
+                    ..base
+                }),
+                "K_T",
+            ),
+            (
+                with(CostModel {
+                    intersection: 0.0,
+                    ..base
+                }),
+                "K_I",
+            ),
+            (
+                with(CostModel {
+                    intersection: f32::NAN,
+                    ..base
+                }),
+                "K_I",
+            ),
+            (
+                with(CostModel {
+                    max_duplication: 0.5,
+                    ..base
+                }),
+                "max_duplication",
+            ),
+            (
+                with(CostModel {
+                    max_depth: Some(61),
+                    ..base
+                }),
+                "max_depth",
+            ),
+            (
+                BuildOptions {
+                    threads: Some(0),
+                    ..BuildOptions::default()
+                },
+                "threads",
+            ),
+        ] {
+            let err = options.validate().unwrap_err().to_string();
+            assert!(err.contains(word), "{err} should name {word}");
+        }
+    }
+}
