@@ -54,13 +54,8 @@ fn check_chart(path: &Path) {
 }
 
 fn algorithm(name: &str) -> Algorithm {
-    match name {
-        "sweep" => Algorithm::Sweep,
-        "naive" => Algorithm::Naive,
-        "median" => Algorithm::Median,
-        "level" => Algorithm::Level,
-        other => panic!("unknown builder {other} in results.json"),
-    }
+    name.parse()
+        .unwrap_or_else(|e| panic!("unknown builder {name} in results.json: {e}"))
 }
 
 fn f(v: &Value) -> f64 {
@@ -85,7 +80,7 @@ fn bench_writes_every_file_and_its_trees_are_the_librarys() {
         specs[0],
         specs[1],
         "--algorithms",
-        "level,sweep,naive,median",
+        "level,sweep,naive,median,hybrid",
         "--threads",
         "2,1",
         "--repeat",
@@ -114,8 +109,8 @@ fn bench_writes_every_file_and_its_trees_are_the_librarys() {
         assert_eq!(scene["triangles"], mesh.triangles.len());
         let naive_skipped = mesh.triangles.len() > 1500;
         let builds = scene["builds"].as_array().unwrap();
-        // level, median and naive at 1 and 2 threads, the serial sweep once.
-        assert_eq!(builds.len(), 7, "{spec}");
+        // level, median, naive and hybrid at 1 and 2 threads, the serial sweep once.
+        assert_eq!(builds.len(), 9, "{spec}");
         for b in builds {
             let name = b["algorithm"].as_str().unwrap();
             let threads = b["threads"].as_u64().unwrap() as usize;
@@ -146,7 +141,7 @@ fn bench_writes_every_file_and_its_trees_are_the_librarys() {
             assert!((f(&m["sah_cost"]) - stats.sah_cost).abs() <= 1e-9 * stats.sah_cost);
         }
         let rays = scene["rays"].as_array().unwrap();
-        assert_eq!(rays.len(), if naive_skipped { 3 } else { 4 }, "{spec}");
+        assert_eq!(rays.len(), if naive_skipped { 4 } else { 5 }, "{spec}");
         for r in rays {
             assert_eq!(r["primary"]["rays"], 40 * 30, "{r}");
             check_spread(&r["primary_mrays"], 2);
@@ -184,6 +179,7 @@ fn bench_writes_every_file_and_its_trees_are_the_librarys() {
         "| spd:toys:2000 |",
         "| spd:sphere:1200 |",
         "skipped (n > cap",
+        "sahkd default (hybrid)",
         "## Fig. 1",
         "## Fig. 2",
         "## Ray throughput",
@@ -283,12 +279,12 @@ fn with_no_scene_named_it_runs_the_papers_table_from_the_scenes_folder() {
     // Fig. 1 runs on the largest scene.
     assert_eq!(results["levels"][0]["scene"], "Buddha");
     let table = std::fs::read_to_string(out.path().join("table1.md")).unwrap();
-    // The paper's own numbers (Table 1, ms) beside ours, with its speed-ups.
+    // The paper's own numbers (Table 1, ms) beside ours, with its speed-ups; it has no hybrid.
     for row in [
-        "| Toys | 11 k | paper | 31 | 37 | 27 | 28 | 1.32 | 1.11 | 0.96 |",
-        "| Bunny | 69 k | paper | 87 | 233 | 240 | 54 | 4.31 | 1.61 | 4.44 |",
-        "| Dragon | 252 k | paper | 193 | 641 | 810 | 110 | 5.83 | 1.75 | 7.36 |",
-        "| Buddha | 1 M | paper | 790 | 2554 | 2840 | 410 | 6.23 | 1.93 | 6.93 |",
+        "| Toys | 11 k | paper | 31 | 37 | 27 | 28 | — | 1.32 | 1.11 | 0.96 |",
+        "| Bunny | 69 k | paper | 87 | 233 | 240 | 54 | — | 4.31 | 1.61 | 4.44 |",
+        "| Dragon | 252 k | paper | 193 | 641 | 810 | 110 | — | 5.83 | 1.75 | 7.36 |",
+        "| Buddha | 1 M | paper | 790 | 2554 | 2840 | 410 | — | 6.23 | 1.93 | 6.93 |",
     ] {
         assert!(table.contains(row), "'{row}' not in:\n{table}");
     }

@@ -61,6 +61,7 @@ fn builder_style(algorithm: &str) -> &'static str {
     match algorithm {
         "level" => "level (solid, circles)",
         "median" => "median (dashed, triangles)",
+        "hybrid" => "hybrid (long dashes, rings)",
         _ => "naive (dotted, crosses)",
     }
 }
@@ -373,6 +374,10 @@ pub fn fig2(path: &Path, results: &Results) -> Result<()> {
                 path,
                 chart.draw_series(DashedLineSeries::new(points.clone(), 14, 8, line))
             ),
+            "hybrid" => draw!(
+                path,
+                chart.draw_series(DashedLineSeries::new(points.clone(), 28, 6, line))
+            ),
             _ => draw!(
                 path,
                 chart.draw_series(DashedLineSeries::new(points.clone(), 4, 6, line))
@@ -388,6 +393,10 @@ pub fn fig2(path: &Path, results: &Results) -> Result<()> {
             "median" => draw!(
                 path,
                 chart.draw_series(points.iter().map(|&p| TriangleMarker::new(p, 7, marker)))
+            ),
+            "hybrid" => draw!(
+                path,
+                chart.draw_series(points.iter().map(|&p| Circle::new(p, 7, line)))
             ),
             _ => draw!(
                 path,

@@ -42,7 +42,7 @@ pub struct Args {
         value_enum,
         value_name = "LIST",
         value_delimiter = ',',
-        default_value = "median,sweep,naive,level"
+        default_value = "median,sweep,naive,level,hybrid"
     )]
     pub algorithms: Vec<AlgorithmArg>,
 
@@ -340,13 +340,11 @@ fn device(name: &str, settings: &Settings) -> DeviceArg {
     }
 }
 
+/// The builder of a name in `Settings::algorithms` (the library's own names, so parsing
+/// cannot fail).
 fn algorithm(name: &str) -> Algorithm {
-    match name {
-        "sweep" => Algorithm::Sweep,
-        "naive" => Algorithm::Naive,
-        "median" => Algorithm::Median,
-        _ => Algorithm::Level,
-    }
+    name.parse()
+        .expect("Settings::algorithms holds the library's names")
 }
 
 fn measure_scene(
