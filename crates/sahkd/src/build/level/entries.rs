@@ -6,29 +6,13 @@
 //! partition can look up where the reference goes. Slots keep the primitives' relative order
 //! (every partition is stable), so ordering ties by slot is ordering them by primitive index.
 
-/// Bits of a slot; the event encoding keeps the two bits above them for the event kind.
-pub(super) const SLOT_BITS: u32 = 30;
+use crate::build::event;
+pub(super) use crate::build::event::{ordered, END, PLANAR, START};
+
+/// Bits of a slot: the shared event encoding's id bits.
+pub(super) const SLOT_BITS: u32 = event::ID_BITS;
 /// The most references one level may hold.
-pub(super) const MAX_SLOTS: usize = (1 << SLOT_BITS) - 1;
-const SLOT_MASK: u64 = (1 << SLOT_BITS) - 1;
-
-/// Maps an `f32` to a `u32` whose integer order is the float order (with -0 just below +0),
-/// so that sort keys are plain integers.
-#[inline(always)]
-pub(super) fn ordered(x: f32) -> u32 {
-    let b = x.to_bits();
-    if b >> 31 == 1 {
-        !b
-    } else {
-        b | 0x8000_0000
-    }
-}
-
-/// The inverse of [`ordered`].
-#[inline(always)]
-pub(super) fn unordered(u: u32) -> f32 {
-    f32::from_bits(if u >> 31 == 1 { u & 0x7fff_ffff } else { !u })
-}
+pub(super) const MAX_SLOTS: usize = event::MAX_ID;
 
 /// What the level machinery needs from a list entry.
 pub(super) trait ListEntry: Copy + Send + Sync + 'static {
@@ -95,45 +79,39 @@ impl ListEntry for Span {
     }
 }
 
-/// Kinds of events, in their order at equal positions.
-pub(super) const END: u32 = 0;
-pub(super) const PLANAR: u32 = 1;
-pub(super) const START: u32 = 2;
-
-/// A split event packed in one integer: position (as [`ordered`] bits) above kind above slot,
-/// so that integer order is the order (position, kind, slot) of Wald and Havran. A position of
-/// -0 is stored as +0 (the same plane), so that equal positions have equal bits.
+/// A split event in the shared encoding ([`crate::build::event`]), its id the reference's
+/// level slot.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(super) struct Event(pub u64);
 
 impl Event {
     #[inline(always)]
     pub fn new(pos: f32, kind: u32, slot: u32) -> Event {
-        Event((ordered(pos + 0.0) as u64) << 32 | (kind as u64) << SLOT_BITS | slot as u64)
+        Event(event::pack(pos, kind, slot))
     }
     #[inline(always)]
     pub fn pos(self) -> f32 {
-        unordered((self.0 >> 32) as u32)
+        event::pos(self.0)
     }
     /// The position's [`ordered`] bits: equal exactly for equal positions.
     #[inline(always)]
     pub fn pos_bits(self) -> u32 {
-        (self.0 >> 32) as u32
+        event::pos_bits(self.0)
     }
     #[inline(always)]
     pub fn kind(self) -> u32 {
-        ((self.0 >> SLOT_BITS) & 3) as u32
+        event::kind(self.0)
     }
 }
 
 impl ListEntry for Event {
     #[inline(always)]
     fn slot(self) -> u32 {
-        (self.0 & SLOT_MASK) as u32
+        event::id(self.0)
     }
     #[inline(always)]
     fn with_slot(self, slot: u32) -> Self {
-        Event(self.0 & !SLOT_MASK | slot as u64)
+        Event(event::with_id(self.0, slot))
     }
     #[inline(always)]
     fn key(self) -> u64 {
@@ -175,28 +153,6 @@ impl ListEntry for Event {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn ordered_bits_follow_float_order_and_round_trip() {
-        let xs = [
-            f32::NEG_INFINITY,
-            -1e30,
-            -1.5,
-            -f32::MIN_POSITIVE,
-            -0.0,
-            0.0,
-            1e-40,
-            1.0,
-            3e38,
-            f32::INFINITY,
-        ];
-        for w in xs.windows(2) {
-            assert!(ordered(w[0]) < ordered(w[1]), "{} vs {}", w[0], w[1]);
-        }
-        for x in xs {
-            assert_eq!(unordered(ordered(x)).to_bits(), x.to_bits());
-        }
-    }
 
     #[test]
     fn events_sort_by_position_then_end_planar_start_then_slot() {

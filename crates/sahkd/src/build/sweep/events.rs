@@ -1,63 +1,20 @@
-//! Split events packed into one `u64` each, so that sorting and merging them is integer work.
-//!
-//! Layout, high to low bits: 32 bits of the position (an order-preserving image of the
-//! `f32`), 2 bits of kind (end < planar < start), 30 bits of primitive index. Integer order is
-//! therefore the total order (position, kind, primitive) of Wald & Havran's sweep, made
-//! deterministic by the primitive index. Each axis keeps its own list, so the axis is implicit.
+//! The sweep's event lists: events in the shared encoding of [`crate::build::event`] (id =
+//! the primitive's index in the sweep's numbering), made, merged and sorted.
 
+pub(super) use crate::build::event::{kind, plane_bits, pos_bits, END, PLANAR, START};
+use crate::build::event::{pack, ID_BITS};
 use crate::geometry::Aabb;
 
 pub(crate) type Event = u64;
 
-/// The primitive's box ends here.
-pub(super) const END: u64 = 0;
-/// The primitive's box is flat on this axis and lies in this plane.
-pub(super) const PLANAR: u64 = 1;
-/// The primitive's box starts here.
-pub(super) const START: u64 = 2;
-
-const PRIM_BITS: u32 = 30;
-const PRIM_MASK: u64 = (1 << PRIM_BITS) - 1;
-
-/// Order-preserving image of a finite `f32` (`-0.0` is taken as `0.0`, as `==` does).
 #[inline(always)]
-pub(super) fn key_of(pos: f32) -> u32 {
-    let bits = (pos + 0.0).to_bits();
-    if bits & 0x8000_0000 != 0 {
-        !bits
-    } else {
-        bits | 0x8000_0000
-    }
-}
-
-/// Inverse of [`key_of`].
-#[inline(always)]
-pub(super) fn pos_of(key: u32) -> f32 {
-    f32::from_bits(if key & 0x8000_0000 != 0 {
-        key & 0x7fff_ffff
-    } else {
-        !key
-    })
-}
-
-#[inline(always)]
-pub(super) fn event(pos: f32, kind: u64, prim: u32) -> Event {
-    ((key_of(pos) as u64) << 32) | (kind << PRIM_BITS) | prim as u64
-}
-
-#[inline(always)]
-pub(super) fn pos_key(e: Event) -> u32 {
-    (e >> 32) as u32
-}
-
-#[inline(always)]
-pub(super) fn kind(e: Event) -> u64 {
-    (e >> PRIM_BITS) & 3
+pub(super) fn event(pos: f32, kind: u32, prim: u32) -> Event {
+    pack(pos, kind, prim)
 }
 
 #[inline(always)]
 pub(super) fn prim(e: Event) -> usize {
-    (e & PRIM_MASK) as usize
+    crate::build::event::id(e) as usize
 }
 
 /// Appends the events of `prim`'s box on `axis`: one planar event for a flat box, else a
@@ -134,7 +91,7 @@ pub(super) fn merge_in_place(list: &mut Vec<Event>, start: usize, b: &[Event]) {
 /// order. On the Dragon (1.7 M events per axis) the root's events are made and sorted in
 /// about 140 ms this way against about 200 ms with `sort_unstable`.
 pub(super) fn sort_prim_ordered(events: &mut Vec<Event>, scratch: &mut Vec<Event>) {
-    const DIGITS: [(u32, u32); 3] = [(PRIM_BITS, 11), (PRIM_BITS + 11, 11), (PRIM_BITS + 22, 12)];
+    const DIGITS: [(u32, u32); 3] = [(ID_BITS, 11), (ID_BITS + 11, 11), (ID_BITS + 22, 12)];
     if events.len() < 256 {
         events.sort_unstable();
         return;
@@ -167,55 +124,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn keys_preserve_float_order_and_round_trip() {
-        let xs = [
-            f32::MIN,
-            -1e30,
-            -1.5,
-            -f32::MIN_POSITIVE,
-            0.0,
-            f32::MIN_POSITIVE,
-            1e-30,
-            1.0,
-            1.5,
-            3e38,
-        ];
-        for w in xs.windows(2) {
-            assert!(key_of(w[0]) < key_of(w[1]), "{} vs {}", w[0], w[1]);
-        }
-        for x in xs {
-            assert_eq!(pos_of(key_of(x)).to_bits(), x.to_bits());
-        }
-        assert_eq!(key_of(-0.0), key_of(0.0));
-    }
-
-    #[test]
-    fn event_order_is_position_then_kind_then_prim() {
-        let mut es = [
-            event(1.0, START, 0),
-            event(1.0, END, 5),
-            event(0.5, START, 9),
-            event(1.0, PLANAR, 3),
-            event(1.0, END, 2),
-        ];
-        es.sort_unstable();
-        let decoded: Vec<(f32, u64, usize)> = es
-            .iter()
-            .map(|&e| (pos_of(pos_key(e)), kind(e), prim(e)))
-            .collect();
-        assert_eq!(
-            decoded,
-            vec![
-                (0.5, START, 9),
-                (1.0, END, 2),
-                (1.0, END, 5),
-                (1.0, PLANAR, 3),
-                (1.0, START, 0)
-            ]
-        );
-    }
-
-    #[test]
     fn radix_sort_agrees_with_comparison_sort() {
         let mut seed = 7u64;
         let mut next = move || {
@@ -228,7 +136,7 @@ mod tests {
         for prim in 0..5000u32 {
             // Few distinct positions, so that kinds and prims decide many comparisons.
             let pos = (next() % 40) as f32 - 20.0;
-            events.push(event(pos, next() % 3, prim));
+            events.push(event(pos, (next() % 3) as u32, prim));
         }
         let mut expected = events.clone();
         expected.sort_unstable();

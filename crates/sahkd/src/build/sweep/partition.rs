@@ -8,7 +8,7 @@
 //! on, straddlers' events are dropped from the split and re-made from their boxes clipped to
 //! each child; these few are sorted and merged into the stable split.
 
-use super::events::{self, kind, pos_key, prim, Event, END};
+use super::events::{self, kind, pos_bits, prim, Event, END};
 use super::search::Split;
 use crate::clip::clipped_bounds;
 use crate::geometry::{Aabb, Triangle};
@@ -188,7 +188,7 @@ impl Workspace {
             [BOTH, RIGHT, RIGHT],
             [KEEP; 3],
         ];
-        let plane = events::key_of(split.pos);
+        let plane = events::plane_bits(split.pos);
         let events = &self.arena[split.axis][start..];
         if self.straddlers.len() < events.len() / 2 {
             self.straddlers.resize(events.len() / 2, 0);
@@ -196,7 +196,7 @@ impl Workspace {
         let (side, straddlers) = (&mut self.side[..], &mut self.straddlers[..]);
         let mut count = 0;
         for &e in events {
-            let (key, p, k) = (pos_key(e), prim(e), kind(e));
+            let (key, p, k) = (pos_bits(e), prim(e), kind(e));
             let place = (key >= plane) as usize + (key > plane) as usize;
             let old = side[p];
             let new = table[k as usize][place];

@@ -5,7 +5,8 @@
 //! `p` are the primitives with `lo < p`; `R` starts at `n` and drops by the ends and planars
 //! at or before `p`. The planars at `p` are `P`.
 
-use super::events::{key_of, kind, pos_key, pos_of, Event, END, PLANAR};
+use super::events::{kind, plane_bits, pos_bits, Event, END, PLANAR};
+use crate::build::event::unordered;
 use crate::build::Axes;
 use crate::cost::CostModel;
 use crate::geometry::Aabb;
@@ -87,16 +88,16 @@ fn sweep_axis<const AXIS: usize>(
 ) {
     let axis = AXIS;
     // Candidates must lie strictly inside the node; compare keys, not floats.
-    let (lo_key, hi_key) = (key_of(node.lo[axis]), key_of(node.hi[axis]));
+    let (lo_key, hi_key) = (plane_bits(node.lo[axis]), plane_bits(node.hi[axis]));
     let (mut below, mut above) = (0u32, n);
     let mut i = 0;
     while i < events.len() {
-        let key = pos_key(events[i]);
+        let key = pos_bits(events[i]);
         // Ends (low half) and planars (high half) of the group, counted in one register so
         // that the hot loop does no stores; starts are the rest of the group.
         let group_start = i;
         let mut packed = 0u64;
-        while i < events.len() && pos_key(events[i]) == key {
+        while i < events.len() && pos_bits(events[i]) == key {
             let k = kind(events[i]);
             packed += (k == END) as u64 | ((k == PLANAR) as u64) << 32;
             i += 1;
@@ -105,7 +106,7 @@ fn sweep_axis<const AXIS: usize>(
         let starts = (i - group_start) as u32 - ends - planar;
         above -= ends + planar;
         if key > lo_key && key < hi_key {
-            let pos = pos_of(key);
+            let pos = unordered(key);
             let candidate = if planar == 0 {
                 Split {
                     axis,
