@@ -21,8 +21,8 @@ use super::sweep::{self, Subtree, SubtreeReport};
 use super::{BuildOptions, BuiltTree, Primitives};
 use crate::geometry::Triangle;
 use crate::tree::Node;
-use rayon::prelude::*;
-use std::sync::atomic::AtomicUsize;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
 use std::time::Instant;
 
 /// Nodes per worker a level must hold before it is handed over.
@@ -69,53 +69,67 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
             .map(|k| frontier.refs(k))
             .sum::<usize>();
     let shared_total = AtomicUsize::new(held);
-    // Biggest first, one node per task, so that the last subtrees to start are small ones.
+    // Biggest first, each worker taking the next node when it is free (longest processing
+    // time first), so that the last subtrees to start are the small ones. Rayon's recursive
+    // halving would instead give one worker the first (biggest) half of the list to start with.
     let mut order: Vec<usize> = (0..frontier.nodes()).collect();
     order.sort_by_key(|&k| std::cmp::Reverse(frontier.refs(k)));
-    let mut pieces: Vec<(usize, Piece, Option<SubtreeReport>)> = order
-        .into_par_iter()
-        .with_max_len(1)
-        .map(|k| {
-            let node = frontier.node(k);
-            let n = node.prims.len();
-            if n as u32 <= options.cost.leaf_size || node.depth >= max_depth {
-                // A leaf by the leaf rules: the level passes made no lists for it.
-                let piece = Piece {
-                    nodes: vec![Node::leaf(0, n as u32)],
-                    refs: node.prims.to_vec(),
-                };
-                return (k, piece, None);
-            }
-            let triangles: Vec<Triangle> = node
-                .prims
-                .iter()
-                .map(|&p| prims.triangles[p as usize])
-                .collect();
-            let subtree = Subtree {
-                triangles: &triangles,
-                bounds: node.bounds,
-                depth: node.depth,
-                max_depth,
-                budget,
-                shared_total: Some(&shared_total),
+    let build_one = |k: usize| {
+        let node = frontier.node(k);
+        let n = node.prims.len();
+        if n as u32 <= options.cost.leaf_size || node.depth >= max_depth {
+            // A leaf by the leaf rules: the level passes made no lists for it.
+            let piece = Piece {
+                nodes: vec![Node::leaf(0, n as u32)],
+                refs: node.prims.to_vec(),
             };
-            let mut piece = Piece {
-                nodes: Vec::new(),
-                refs: Vec::new(),
-            };
-            let report = sweep::build_subtree_sorted(
-                &subtree,
-                node.events,
-                options,
-                &mut piece.nodes,
-                &mut piece.refs,
-            );
-            for r in piece.refs.iter_mut() {
-                *r = node.prims[*r as usize];
-            }
-            (k, piece, Some(report))
-        })
-        .collect();
+            return (k, piece, None);
+        }
+        let triangles: Vec<Triangle> = node
+            .prims
+            .iter()
+            .map(|&p| prims.triangles[p as usize])
+            .collect();
+        let subtree = Subtree {
+            triangles: &triangles,
+            bounds: node.bounds,
+            depth: node.depth,
+            max_depth,
+            budget,
+            shared_total: Some(&shared_total),
+        };
+        let mut piece = Piece {
+            nodes: Vec::new(),
+            refs: Vec::new(),
+        };
+        let report = sweep::build_subtree_sorted(
+            &subtree,
+            node.events,
+            options,
+            &mut piece.nodes,
+            &mut piece.refs,
+        );
+        for r in piece.refs.iter_mut() {
+            *r = node.prims[*r as usize];
+        }
+        (k, piece, Some(report))
+    };
+    let next = AtomicUsize::new(0);
+    let done = Mutex::new(Vec::with_capacity(order.len()));
+    rayon::scope(|scope| {
+        for _ in 0..threads {
+            scope.spawn(|_| loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                let Some(&k) = order.get(i) else { break };
+                let piece = build_one(k);
+                done.lock()
+                    .expect("no worker panics while holding it")
+                    .push(piece);
+            });
+        }
+    });
+    let mut pieces: Vec<(usize, Piece, Option<SubtreeReport>)> =
+        done.into_inner().expect("no worker panicked");
     pieces.sort_unstable_by_key(|p| p.0);
     let mut subtree_peak = 0;
     for report in pieces.iter().filter_map(|p| p.2.as_ref()) {

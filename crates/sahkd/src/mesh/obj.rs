@@ -263,7 +263,7 @@ impl BufRead for Lines<'_> {
             self.number += 1;
             let words = self.data[self.start..end].trim_ascii_start();
             self.blank = words.starts_with(b"vt") || words.starts_with(b"vn");
-            self.blank &= words.get(2).map_or(true, |b| b.is_ascii_whitespace());
+            self.blank &= words.get(2).is_none_or(|b| b.is_ascii_whitespace());
         }
         if self.blank {
             return Ok(b"\n");
