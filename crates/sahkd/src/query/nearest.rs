@@ -7,6 +7,10 @@
 //! resolution): the walk then tests every triangle whose computed distance could tie or
 //! beat the best, and its answer is the brute force's (`query::brute`) to the bit, ties
 //! going to the lower triangle index.
+//!
+//! A child's distance follows from its parent's by changing one axis's component (the
+//! incremental distance of Arya and Mount), so the walk carries no boxes; a triangle is
+//! skipped without its exact test when its bounding box already lies beyond the bound.
 
 use super::triangle::{closest_on_triangle, d3, D3};
 use super::ClosestPoint;
@@ -51,11 +55,14 @@ pub(crate) fn slack(bounds: &Aabb, p: D3) -> f64 {
     SLACK * m
 }
 
+/// A node to visit: its squared distance from the point, and that distance's components
+/// along each axis (zero where the point lies within the node's extent), from which a
+/// child's distance follows without its box.
 #[derive(Clone, Copy)]
 struct Pending {
     node: u32,
-    bounds: Aabb,
     distance2: f64,
+    offset: [f64; 3],
 }
 
 /// The closest point of the tree's triangles to `p`; `None` for an empty tree or a point
@@ -72,16 +79,29 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
     let mut limit = f64::INFINITY;
     let mut stack = [MaybeUninit::<Pending>::uninit(); MAX_DEPTH_CAP as usize + 4];
     let mut top = 0usize;
+    let b = &tree.bounds;
+    let offset: [f64; 3] = std::array::from_fn(|a| {
+        (b.lo[a] as f64 - pd[a])
+            .max(pd[a] - b.hi[a] as f64)
+            .max(0.0)
+    });
     let mut current = Pending {
         node: 0,
-        bounds: tree.bounds,
-        distance2: box_distance2(pd, &tree.bounds),
+        distance2: offset.iter().map(|o| o * o).sum(),
+        offset,
     };
     loop {
         if current.distance2 <= limit {
             let node = &layout.nodes[current.node as usize];
             if node.is_leaf() {
                 for record in layout.leaf(node) {
+                    // The triangle's box bounds its distance from below: a cheap rejection
+                    // of most of a leaf's triangles once a good answer is known.
+                    let c = &record.corners;
+                    let tri_box = Aabb::new(c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
+                    if box_distance2(pd, &tri_box) > limit {
+                        continue;
+                    }
                     let found = closest_on_triangle(pd, &record.corners);
                     let better = match best {
                         None => true,
@@ -97,28 +117,28 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
                 }
             } else {
                 let (axis, split) = (node.axis(), node.split());
-                let (lo, hi) = current.bounds.split(axis, split);
                 let left = node.left();
-                // The child holding the point first: it is at distance 0 along this axis.
-                let (near, far, near_box, far_box) = if p[axis] < split {
-                    (left, left + 1, lo, hi)
+                // The child holding the point first: it is as far as this node. The other is
+                // as far along this axis as the plane.
+                let (near, far) = if p[axis] < split {
+                    (left, left + 1)
                 } else {
-                    (left + 1, left, hi, lo)
+                    (left + 1, left)
                 };
-                let far_d2 = box_distance2(pd, &far_box);
+                let gap = (split as f64 - pd[axis]).abs();
+                let old = current.offset[axis];
+                let far_d2 = current.distance2 - old * old + gap * gap;
                 if far_d2 <= limit {
+                    let mut offset = current.offset;
+                    offset[axis] = gap;
                     stack[top] = MaybeUninit::new(Pending {
                         node: far,
-                        bounds: far_box,
                         distance2: far_d2,
+                        offset,
                     });
                     top += 1;
                 }
-                current = Pending {
-                    node: near,
-                    bounds: near_box,
-                    distance2: box_distance2(pd, &near_box),
-                };
+                current.node = near;
                 continue;
             }
         }
