@@ -1,5 +1,5 @@
-//! Rays from a `.npy` file: float32 rows of origin xyz, direction xyz, and optionally
-//! t_min, t_max.
+//! Rays and query points from `.npy` files: float32 rows of origin xyz, direction xyz, and
+//! optionally t_min, t_max; or of point xyz.
 
 use anyhow::{bail, Context, Result};
 use npyz::{DType, NpyFile, Order, TypeChar};
@@ -10,6 +10,52 @@ use std::path::Path;
 
 /// Reads an (R, 6) or (R, 8) float32 array. Rows of 6 get the range [0, inf).
 pub fn read(path: &Path) -> Result<Vec<Ray>> {
+    let rows = read_rows(path, &[6, 8], "(R, 6) or (R, 8)", "rays")?;
+    Ok((0..rows.rows)
+        .map(|r| {
+            let at = |col| rows.at(r, col);
+            let ray = Ray::new(
+                Vec3::new(at(0), at(1), at(2)),
+                Vec3::new(at(3), at(4), at(5)),
+            );
+            if rows.width == 8 {
+                ray.with_range(at(6), at(7))
+            } else {
+                ray
+            }
+        })
+        .collect())
+}
+
+/// Reads query points: an (N, 3) float32 array.
+pub fn read_points(path: &Path) -> Result<Vec<Vec3>> {
+    let rows = read_rows(path, &[3], "(N, 3)", "points")?;
+    Ok((0..rows.rows)
+        .map(|r| Vec3::new(rows.at(r, 0), rows.at(r, 1), rows.at(r, 2)))
+        .collect())
+}
+
+/// A 2-D float32 array as read, in either memory order.
+struct Rows {
+    values: Vec<f32>,
+    rows: usize,
+    width: usize,
+    order: Order,
+}
+
+impl Rows {
+    /// Fortran order stores column by column; C order row by row.
+    fn at(&self, row: usize, col: usize) -> f32 {
+        match self.order {
+            Order::C => self.values[row * self.width + col],
+            Order::Fortran => self.values[col * self.rows + row],
+        }
+    }
+}
+
+/// Reads a float32 array of shape (rows, w) with w one of `widths`; `expected` describes the
+/// shape and `noun` the rows in error messages.
+fn read_rows(path: &Path, widths: &[u64], expected: &str, noun: &str) -> Result<Rows> {
     let name = path.display();
     let file = File::open(path).with_context(|| format!("cannot read {name}"))?;
     let file_bytes = file
@@ -43,9 +89,9 @@ pub fn read(path: &Path) -> Result<Vec<Ray>> {
     }
     let shape = npy.shape().to_vec();
     let width = match shape[..] {
-        [_, w @ (6 | 8)] => w as usize,
+        [_, w] if widths.contains(&w) => w as usize,
         _ => bail!(
-            "{name}: expected shape (R, 6) or (R, 8), found {}",
+            "{name}: expected shape {expected}, found {}",
             describe_shape(&shape)
         ),
     };
@@ -55,33 +101,21 @@ pub fn read(path: &Path) -> Result<Vec<Ray>> {
         .is_none_or(|n| n > file_bytes)
     {
         bail!(
-            "{name}: the header declares {} rays, more than the file holds",
+            "{name}: the header declares {} {noun}, more than the file holds",
             shape[0]
         );
     }
-    let rows = usize::try_from(shape[0]).context("too many rays")?;
+    let rows = usize::try_from(shape[0]).with_context(|| format!("too many {noun}"))?;
     let order = npy.order();
     let values: Vec<f32> = npy
         .into_vec()
-        .with_context(|| format!("{name}: cannot read the ray data"))?;
-    // Fortran order stores column by column; C order row by row.
-    let at = |row: usize, col: usize| match order {
-        Order::C => values[row * width + col],
-        Order::Fortran => values[col * rows + row],
-    };
-    Ok((0..rows)
-        .map(|r| {
-            let ray = Ray::new(
-                Vec3::new(at(r, 0), at(r, 1), at(r, 2)),
-                Vec3::new(at(r, 3), at(r, 4), at(r, 5)),
-            );
-            if width == 8 {
-                ray.with_range(at(r, 6), at(r, 7))
-            } else {
-                ray
-            }
-        })
-        .collect())
+        .with_context(|| format!("{name}: cannot read the {} data", &noun[..noun.len() - 1]))?;
+    Ok(Rows {
+        values,
+        rows,
+        width,
+        order,
+    })
 }
 
 /// The `shape` of a .npy header and where its data starts, read without consuming it;

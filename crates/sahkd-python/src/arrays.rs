@@ -152,6 +152,15 @@ fn read_points(obj: &Bound<'_, PyAny>, name: &str, what: &str) -> PyResult<Vec<[
     Ok(out)
 }
 
+/// Query points: an `(N, 3)` float32 or float64 array, rounded to float32 (the precision of
+/// the mesh); a non-finite point is an error.
+pub fn query_points(obj: &Bound<'_, PyAny>) -> PyResult<Vec<Vec3>> {
+    Ok(read_points(obj, "points", "(N, 3)")?
+        .into_iter()
+        .map(Vec3)
+        .collect())
+}
+
 /// Integer dtypes accepted for face indices.
 trait Index: Element + Copy {
     fn wide(self) -> i128;

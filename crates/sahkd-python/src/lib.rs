@@ -22,7 +22,7 @@ use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBytes, PyDict, PyTuple, PyType};
 use rayon::prelude::*;
 use rayon::ThreadPool;
-use sahkd::{Hit, KdTree, Ray, TreeStats};
+use sahkd::{Hit, InsideTest, KdTree, Ray, TreeStats};
 
 use format::Meta;
 
@@ -86,6 +86,14 @@ fn namedtuple<'py>(
 
 static HITS: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static ALL_HITS: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+static CLOSEST: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+
+/// `inside=`: the name of an inside test.
+fn inside_arg(inside: &str) -> PyResult<InsideTest> {
+    inside
+        .parse()
+        .map_err(|e: String| PyValueError::new_err(format!("inside: {e}")))
+}
 
 impl PyKdTree {
     fn from_tree(tree: KdTree, meta: Meta) -> Self {
@@ -443,6 +451,111 @@ impl PyKdTree {
         };
         let rays = ray_args(origins, directions, t_min, t_max)?;
         self.all_hits(py, rays, max_hits, Walk::Tree)
+    }
+
+    /// The closest point of the mesh to each point, as Closest(point, distance, prim):
+    /// point (N, 3) float64 on the mesh, distance (N,) float64, prim (N,) int64 (the face;
+    /// the lowest index among equally near ones). points: (N, 3) float32 or float64, rounded
+    /// to float32 like the mesh; the answer is then exact up to float64 rounding. On a mesh
+    /// without faces: NaN points, infinite distances, prim -1.
+    #[pyo3(text_signature = "(self, points)")]
+    fn closest_point<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let points = arrays::query_points(points)?;
+        let pool = self.pool()?;
+        let (point, distance, prim) = py.detach(|| {
+            let found = pool.install(|| self.tree.closest_point_batch(&points));
+            let mut point = Vec::with_capacity(3 * found.len());
+            let mut distance = Vec::with_capacity(found.len());
+            let mut prim = Vec::with_capacity(found.len());
+            for c in found {
+                match c {
+                    Some(c) => {
+                        point.extend(c.point);
+                        distance.push(c.distance);
+                        prim.push(c.prim as i64);
+                    }
+                    None => {
+                        point.extend([f64::NAN; 3]);
+                        distance.push(f64::INFINITY);
+                        prim.push(-1i64);
+                    }
+                }
+            }
+            (point, distance, prim)
+        });
+        let n = distance.len();
+        let point = PyArray1::from_vec(py, point).reshape([n, 3])?;
+        namedtuple(py, &CLOSEST, "Closest")?.call1((
+            point,
+            PyArray1::from_vec(py, distance),
+            PyArray1::from_vec(py, prim),
+        ))
+    }
+
+    /// Distance from each point to the mesh, (N,) float64 (inf on a mesh without faces).
+    #[pyo3(text_signature = "(self, points)")]
+    fn distance<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let points = arrays::query_points(points)?;
+        let pool = self.pool()?;
+        let d = py.detach(|| pool.install(|| self.tree.distance_batch(&points)));
+        Ok(PyArray1::from_vec(py, d))
+    }
+
+    /// Distance from each point to the mesh, negative inside, (N,) float64; 0 on the surface.
+    /// inside: "parity" (default: majority of three rays' crossing parities; fast, for closed
+    /// meshes) or "winding" (generalized winding number over every face; robust for meshes
+    /// with holes, but O(faces) per point).
+    #[pyo3(signature = (points, inside="parity"), text_signature = "(self, points, inside='parity')")]
+    fn signed_distance<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        inside: &str,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let test = inside_arg(inside)?;
+        let points = arrays::query_points(points)?;
+        let pool = self.pool()?;
+        let d = py.detach(|| pool.install(|| self.tree.signed_distance_batch(&points, test)));
+        Ok(PyArray1::from_vec(py, d))
+    }
+
+    /// Whether each point is inside the mesh, (N,) bool; inside as for signed_distance.
+    /// Points on the surface may go either way.
+    #[pyo3(signature = (points, inside="parity"), text_signature = "(self, points, inside='parity')")]
+    fn contains<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        inside: &str,
+    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let test = inside_arg(inside)?;
+        let points = arrays::query_points(points)?;
+        let pool = self.pool()?;
+        let c = py.detach(|| pool.install(|| self.tree.contains_batch(&points, test)));
+        Ok(PyArray1::from_vec(py, c))
+    }
+
+    /// The generalized winding number of the mesh around each point, (N,) float64: 1 inside
+    /// and 0 outside a closed mesh wound outwards (-1 inside one wound inwards), fractional
+    /// near holes. Exact sum over every face, O(faces) per point.
+    #[pyo3(text_signature = "(self, points)")]
+    fn winding_number<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let points = arrays::query_points(points)?;
+        let pool = self.pool()?;
+        let w = py.detach(|| pool.install(|| self.tree.winding_number_batch(&points)));
+        Ok(PyArray1::from_vec(py, w))
     }
 
     /// The brute-force oracle for tests: intersect_all's answer computed by testing every

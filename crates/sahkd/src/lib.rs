@@ -22,6 +22,7 @@ pub mod cost;
 pub mod geometry;
 pub mod mesh;
 pub mod output;
+pub mod query;
 pub mod render;
 pub mod scenes;
 pub mod threads;
@@ -34,5 +35,6 @@ pub use build::{
 pub use cost::CostModel;
 pub use geometry::{Aabb, Triangle, Vec3};
 pub use mesh::{Mesh, MeshError};
+pub use query::{ClosestPoint, InsideTest};
 pub use trace::{Hit, Ray, TraceStats};
 pub use tree::{KdTree, Node, TreeStats};

@@ -4,6 +4,7 @@
 pub mod bench;
 pub mod build;
 pub mod info;
+pub mod query;
 pub mod render;
 pub mod trace;
 
@@ -23,6 +24,9 @@ pub enum Command {
     Build(build::Args),
     /// Trace rays from a .npy file and write their hits to a .npz file
     Trace(trace::Args),
+    /// Closest points, distances and (with --signed) signed distances and inside tests of
+    /// points from a .npy file, written to a .npz file
+    Query(query::Args),
     /// Build the kd-tree of a mesh, render a picture through it and report the ray throughput
     Render(render::Args),
     /// Reproduce the paper's experiments: Table 1, Fig. 1 and Fig. 2, with tree quality and
@@ -37,6 +41,7 @@ impl Command {
         match self {
             Command::Build(args) => build::run(args, context),
             Command::Trace(args) => trace::run(args, context),
+            Command::Query(args) => query::run(args, context),
             Command::Info(args) => info::run(args, context),
             Command::Render(args) => render::run(args, context),
             Command::Bench(args) => bench::run(args, context),

@@ -15,6 +15,6 @@ pickle (they travel as their bytes) and save to files (`tree.save(path)`, `sahkd
 """
 
 from ._sahkd import KdTree, __version__, from_bytes, load
-from ._types import AllHits, Hits
+from ._types import AllHits, Closest, Hits
 
-__all__ = ["KdTree", "load", "from_bytes", "Hits", "AllHits", "__version__"]
+__all__ = ["KdTree", "load", "from_bytes", "Hits", "AllHits", "Closest", "__version__"]

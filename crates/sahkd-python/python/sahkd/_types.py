@@ -26,3 +26,8 @@ class AllHits(namedtuple("AllHits", ["t", "prim", "u", "v", "offsets"])):
     def counts(self):
         """The number of hits of each ray (int64)."""
         return np.diff(self.offsets)
+
+
+Closest = namedtuple("Closest", ["point", "distance", "prim"])
+Closest.__doc__ = """Closest point of the mesh to each query point: point (float64, (N, 3)), distance
+(float64, (N,)), prim (int64 face index, -1 on a mesh without faces)."""

@@ -25,9 +25,17 @@ Differences from trimesh's pure-Python intersector, which the tests check:
 - `max_hits` defaults to no limit (trimesh's embree intersector stops at 100).
 - Zero-area faces are never hit (trimesh's intersectors skip them too).
 
+Proximity drop-ins for `trimesh.proximity`: `closest_point(mesh, points)` and
+`signed_distance(mesh, points)` take and return what trimesh's functions do (signed distance
+positive inside, as trimesh has it), answered exactly (float64 point-triangle distances) by
+the kd-tree instead of trimesh's candidate search. The tree is cached per mesh object and
+rebuilt when the mesh changes. Query points are rounded to float32, the mesh's precision.
+
 This module does not import trimesh: any object with `vertices`, `faces` and `bounds` works
 as the mesh.
 """
+
+import weakref
 
 import numpy as np
 
@@ -176,6 +184,8 @@ class RayMeshIntersector:
         return counts[:n], counts[n:]
 
     def contains_points(self, points):
+        # Crossings are counted from intersect_all, which gives each face once, in ray
+        # order, whatever the number of hits (no max_hits cut-off).
         """Whether each point is inside the mesh, bool (n,), by the parity of surface
         crossings; undefined for points on the surface, meaningful for closed meshes.
 
@@ -206,3 +216,44 @@ class RayMeshIntersector:
             undecided = undecided[~decided]
         contains[undecided] = votes[undecided] > 0
         return contains
+
+
+# One intersector (and so one tree) per mesh object, for the proximity functions.
+_INTERSECTORS = weakref.WeakKeyDictionary()
+
+
+def _tree_of(mesh, options):
+    ray = getattr(mesh, "__dict__", {}).get("ray")
+    if isinstance(ray, RayMeshIntersector) and not options:
+        return ray.tree
+    try:
+        intersector = _INTERSECTORS.get(mesh)
+        if intersector is None or intersector._options != options:
+            intersector = RayMeshIntersector(mesh, **options)
+            _INTERSECTORS[mesh] = intersector
+    except TypeError:  # not weakly referenceable: no cache
+        intersector = RayMeshIntersector(mesh, **options)
+    return intersector.tree
+
+
+def _points(points):
+    points = np.asanyarray(points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"points must have shape (n, 3), got {points.shape}")
+    return points
+
+
+def closest_point(mesh, points, **options):
+    """`trimesh.proximity.closest_point`: closest (m, 3) float64, distance (m,) float64 and
+    triangle_id (m,) int64 of each point (the lowest face index among equally near ones).
+    Keyword arguments go to `sahkd.KdTree`."""
+    found = _tree_of(mesh, options).closest_point(_points(points))
+    return found.point, found.distance, found.prim
+
+
+def signed_distance(mesh, points, inside="parity", **options):
+    """`trimesh.proximity.signed_distance`: (n,) float64, positive inside the mesh and
+    negative outside (trimesh's convention, the opposite of `KdTree.signed_distance`).
+    inside: "parity" (fast, for closed meshes) or "winding" (robust for meshes with holes,
+    O(faces) per point)."""
+    return -_tree_of(mesh, options).signed_distance(_points(points), inside=inside)

@@ -420,8 +420,8 @@ impl KdTree {
         self.trace_layout();
     }
 
-    /// The traversal layout of this tree, made on first use.
-    fn trace_layout(&self) -> &TraceLayout {
+    /// The traversal layout of this tree, made on first use (also walked by `query`).
+    pub(crate) fn trace_layout(&self) -> &TraceLayout {
         self.layout.get_or_init(|| TraceLayout::new(self))
     }
 }

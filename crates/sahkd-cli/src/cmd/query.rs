@@ -1,0 +1,262 @@
+//! `sahkd query`: closest points (and with --signed, signed distances and the inside test)
+//! of points from a `.npy` file against a mesh, written to `.npz`. Same input, output and
+//! error rules as `trace`.
+
+use super::Context;
+use crate::format;
+use crate::input::{self, MeshArg};
+use crate::options::BuilderArgs;
+use crate::output;
+use crate::progress::Progress;
+use crate::rays;
+use anyhow::Result;
+use npyz::npz::NpzWriter;
+use npyz::WriterBuilder;
+use sahkd::{ClosestPoint, InsideTest, KdTree, Vec3};
+use serde::Serialize;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    pub mesh: MeshArg,
+
+    /// Query points: float32 array of shape (N, 3)
+    #[arg(long, value_name = "POINTS.npy")]
+    pub points: PathBuf,
+
+    /// Where to write the answers: `point` (float64, (N, 3), the closest point on the mesh),
+    /// `distance` (float64) and `prim` (int64, the triangle); with --signed also
+    /// `signed_distance` (float64, negative inside) and `inside` (bool). A point with a
+    /// non-finite coordinate gets prim -1 and NaN values; on a mesh without triangles,
+    /// prim -1, NaN points and infinite distances
+    #[arg(long, short, value_name = "ANSWERS.npz")]
+    pub output: PathBuf,
+
+    /// Also decide inside/outside and write signed distances
+    #[arg(long)]
+    pub signed: bool,
+
+    /// The inside test of --signed: `parity` (majority of three rays' crossing counts; fast,
+    /// for closed meshes) or `winding` (generalized winding number over every triangle;
+    /// robust for meshes with holes, but O(triangles) per point)
+    #[arg(long, value_name = "TEST", default_value = "parity")]
+    pub inside_test: InsideTest,
+
+    /// Print one JSON object on stdout instead of the summary on stderr
+    #[arg(long)]
+    pub json: bool,
+
+    // Last: the heading of its flattened options would carry over to any argument after it.
+    #[command(flatten)]
+    pub builder: BuilderArgs,
+}
+
+#[derive(Serialize)]
+struct Report {
+    source: String,
+    triangles: usize,
+    points: usize,
+    signed: bool,
+    inside_test: Option<&'static str>,
+    threads: usize,
+    load_ms: f64,
+    build_ms: f64,
+    /// Making the tree's walk layout, done once before the points (not part of `query_ms`).
+    layout_ms: f64,
+    query_ms: f64,
+    mpoints_per_s: f64,
+    /// Points inside the mesh (with --signed).
+    inside: Option<usize>,
+}
+
+/// One point's answer: the closest point and, with --signed, whether it is inside.
+type Answer = (Option<ClosestPoint>, Option<bool>);
+
+pub fn run(args: Args, context: &Context) -> Result<()> {
+    let progress = Progress::new(context.quiet, args.json);
+    // Everything the user can get wrong is checked before the long steps.
+    let mesh_file = match input::Source::resolve(&args.mesh.mesh) {
+        input::Source::File(path) => Some(path),
+        input::Source::Scene(_) => None,
+    };
+    let inputs: Vec<&Path> = [Some(args.points.as_path()), mesh_file.as_deref()]
+        .into_iter()
+        .flatten()
+        .collect();
+    output::check(&args.output, &inputs)?;
+    let builder = args.builder.builder()?;
+    let spinner = progress.spinner(format!("reading {}", args.points.display()));
+    let points = rays::read_points(&args.points);
+    spinner.finish_and_clear();
+    let points = points?;
+    let loaded = builder.install(|| input::load(&args.mesh, &progress))?;
+
+    let spinner = progress.spinner(format!(
+        "building {} triangles",
+        format::count(loaded.mesh.triangles.len() as u64)
+    ));
+    let built = builder.build(&loaded.mesh);
+    spinner.finish_and_clear();
+    let built = built?;
+
+    let start = Instant::now();
+    built.tree.prepare_trace();
+    let layout_ms = start.elapsed().as_secs_f64() * 1e3;
+    let start = Instant::now();
+    let test = args.signed.then_some(args.inside_test);
+    let answers = builder.install(|| query(&built.tree, &points, test, &progress));
+    let query_ms = start.elapsed().as_secs_f64() * 1e3;
+
+    let spinner = progress.spinner(format!("writing {}", args.output.display()));
+    let written = write_answers(&args.output, &points, &answers, args.signed);
+    spinner.finish_and_clear();
+    written?;
+
+    let report = Report {
+        source: loaded.source.name(),
+        triangles: loaded.mesh.triangles.len(),
+        points: points.len(),
+        signed: args.signed,
+        inside_test: test.map(|t| match t {
+            InsideTest::Parity => "parity",
+            InsideTest::Winding => "winding",
+        }),
+        threads: builder.threads(),
+        load_ms: loaded.load_ms,
+        build_ms: built.report.build_ms,
+        layout_ms,
+        query_ms,
+        mpoints_per_s: if query_ms > 0.0 {
+            points.len() as f64 / (query_ms * 1e3)
+        } else {
+            0.0
+        },
+        inside: args
+            .signed
+            .then(|| answers.iter().filter(|a| a.1 == Some(true)).count()),
+    };
+    if args.json {
+        format::print_json(&report)?;
+    } else if !context.quiet {
+        let inside = match report.inside {
+            Some(n) => format!(", {} inside", format::count(n as u64)),
+            None => String::new(),
+        };
+        eprintln!(
+            "{} points on {} triangles of {}{inside}; build {}, layout {}, query {}, {:.2} Mpoints/s on {} threads; wrote {}",
+            format::count(report.points as u64),
+            format::count(report.triangles as u64),
+            report.source,
+            format::ms(report.build_ms),
+            format::ms(report.layout_ms),
+            format::ms(report.query_ms),
+            report.mpoints_per_s,
+            report.threads,
+            args.output.display()
+        );
+    }
+    Ok(())
+}
+
+/// Answers in one batch, or in slices when a progress bar is shown so that it can move.
+fn query(
+    tree: &KdTree,
+    points: &[Vec3],
+    test: Option<InsideTest>,
+    progress: &Progress,
+) -> Vec<Answer> {
+    let slice = if progress.enabled() {
+        (points.len() / 100).max(1 << 14)
+    } else {
+        points.len().max(1)
+    };
+    let bar = progress.bar(points.len() as u64, "querying");
+    let mut out = Vec::with_capacity(points.len());
+    for chunk in points.chunks(slice) {
+        match test {
+            Some(test) => out.extend(
+                tree.closest_point_signed_batch(chunk, test)
+                    .into_iter()
+                    .map(|(c, inside)| (c, Some(inside))),
+            ),
+            None => out.extend(
+                tree.closest_point_batch(chunk)
+                    .into_iter()
+                    .map(|c| (c, None)),
+            ),
+        }
+        bar.inc(chunk.len() as u64);
+    }
+    bar.finish_and_clear();
+    out
+}
+
+/// The distance written for a point without an answer: NaN for a non-finite point,
+/// infinite when the mesh has no triangles.
+fn no_distance(p: &Vec3) -> f64 {
+    if p.is_finite() {
+        f64::INFINITY
+    } else {
+        f64::NAN
+    }
+}
+
+fn write_answers(path: &Path, points: &[Vec3], answers: &[Answer], signed: bool) -> Result<()> {
+    output::write_file(path, |file| {
+        let mut npz = NpzWriter::new(BufWriter::new(file));
+        let n = answers.len();
+        let point = answers
+            .iter()
+            .flat_map(|a| a.0.map_or([f64::NAN; 3], |c| c.point));
+        let distance = answers
+            .iter()
+            .zip(points)
+            .map(|(a, p)| a.0.map_or_else(|| no_distance(p), |c| c.distance));
+        let prim = answers
+            .iter()
+            .map(|a| a.0.map_or(-1, |c| i64::from(c.prim)));
+        write_array(&mut npz, "point", &[n as u64, 3], point)?;
+        write_array(&mut npz, "distance", &[n as u64], distance)?;
+        write_array(&mut npz, "prim", &[n as u64], prim)?;
+        if signed {
+            let inside = answers.iter().map(|a| a.1 == Some(true));
+            let signed = answers.iter().zip(points).map(|(a, p)| match a.0 {
+                Some(c) if a.1 == Some(true) && c.distance > 0.0 => -c.distance,
+                Some(c) => c.distance,
+                None => no_distance(p),
+            });
+            write_array(&mut npz, "signed_distance", &[n as u64], signed)?;
+            write_array(&mut npz, "inside", &[n as u64], inside)?;
+        }
+        // Dropping the writers would finish the archive but swallow any error doing so.
+        let mut file = npz.zip_writer().finish()?;
+        file.flush()
+    })
+}
+
+/// One array of the given shape, stored uncompressed as `np.savez` does.
+fn write_array<T, W>(
+    npz: &mut NpzWriter<W>,
+    name: &str,
+    shape: &[u64],
+    items: impl Iterator<Item = T>,
+) -> std::io::Result<()>
+where
+    T: npyz::AutoSerialize,
+    W: std::io::Write + std::io::Seek,
+{
+    let bytes = shape.iter().product::<u64>() * std::mem::size_of::<T>() as u64;
+    let options = npyz::zip::write::FileOptions::default()
+        .compression_method(npyz::zip::CompressionMethod::Stored)
+        .large_file(bytes >= u32::MAX as u64);
+    let mut writer = npz
+        .array::<T>(name, options)?
+        .default_dtype()
+        .shape(shape)
+        .begin_nd()?;
+    writer.extend(items)?;
+    writer.finish()
+}

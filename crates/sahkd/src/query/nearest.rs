@@ -1,0 +1,155 @@
+//! The closest point of the mesh: a depth-first walk of the kd-tree, nearer child first,
+//! that skips every node whose box lies farther than the best triangle found so far.
+//!
+//! A triangle's closest point lies in (the closed box of) a leaf that references it, so a
+//! leaf farther than the best distance cannot hold a better answer. The bound is loosened by
+//! a slack far above f64 rounding (1e-9 of the coordinates' magnitude, far below f32's
+//! resolution): the walk then tests every triangle whose computed distance could tie or
+//! beat the best, and its answer is the brute force's (`query::brute`) to the bit, ties
+//! going to the lower triangle index.
+//!
+//! A child's distance follows from its parent's by changing one axis's component (the
+//! incremental distance of Arya and Mount), so the walk carries no boxes; a triangle is
+//! skipped without its exact test when its bounding box already lies beyond the bound.
+
+use super::triangle::{closest_on_triangle, d3, D3};
+use super::ClosestPoint;
+use crate::cost::MAX_DEPTH_CAP;
+use crate::geometry::{Aabb, Vec3};
+use crate::tree::KdTree;
+use std::mem::MaybeUninit;
+
+/// The slack of the pruning bound, relative to the largest coordinate magnitude involved.
+const SLACK: f64 = 1e-9;
+
+/// Squared distance from `p` to the closed box `b`, in f64 (exact differences of f32s).
+#[inline(always)]
+pub(crate) fn box_distance2(p: D3, b: &Aabb) -> f64 {
+    let mut d = 0.0;
+    for (a, &x) in p.iter().enumerate() {
+        let (lo, hi) = (b.lo[a] as f64, b.hi[a] as f64);
+        let e = if x < lo {
+            lo - x
+        } else if x > hi {
+            x - hi
+        } else {
+            0.0
+        };
+        d += e * e;
+    }
+    d
+}
+
+/// The pruning slack for a query point: SLACK of the largest magnitude among the point's and
+/// the mesh box's coordinates.
+pub(crate) fn slack(bounds: &Aabb, p: D3) -> f64 {
+    let m = (0..3)
+        .flat_map(|a| {
+            [
+                bounds.lo[a].abs() as f64,
+                bounds.hi[a].abs() as f64,
+                p[a].abs(),
+            ]
+        })
+        .fold(0.0f64, f64::max);
+    SLACK * m
+}
+
+/// A node to visit: its squared distance from the point, and that distance's components
+/// along each axis (zero where the point lies within the node's extent), from which a
+/// child's distance follows without its box.
+#[derive(Clone, Copy)]
+struct Pending {
+    node: u32,
+    distance2: f64,
+    offset: [f64; 3],
+}
+
+/// The closest point of the tree's triangles to `p`; `None` for an empty tree or a point
+/// with a non-finite coordinate.
+pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
+    if tree.triangles.is_empty() || !p.is_finite() {
+        return None;
+    }
+    let layout = tree.trace_layout();
+    let pd = d3(p);
+    let slack = slack(&tree.bounds, pd);
+    // Best so far: squared distance, triangle, weights; `limit` is the loosened bound.
+    let mut best: Option<(f64, u32, [f64; 3])> = None;
+    let mut limit = f64::INFINITY;
+    let mut stack = [MaybeUninit::<Pending>::uninit(); MAX_DEPTH_CAP as usize + 4];
+    let mut top = 0usize;
+    let b = &tree.bounds;
+    let offset: [f64; 3] = std::array::from_fn(|a| {
+        (b.lo[a] as f64 - pd[a])
+            .max(pd[a] - b.hi[a] as f64)
+            .max(0.0)
+    });
+    let mut current = Pending {
+        node: 0,
+        distance2: offset.iter().map(|o| o * o).sum(),
+        offset,
+    };
+    loop {
+        if current.distance2 <= limit {
+            let node = &layout.nodes[current.node as usize];
+            if node.is_leaf() {
+                for record in layout.leaf(node) {
+                    // The triangle's box bounds its distance from below: a cheap rejection
+                    // of most of a leaf's triangles once a good answer is known.
+                    let c = &record.corners;
+                    let tri_box = Aabb::new(c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
+                    if box_distance2(pd, &tri_box) > limit {
+                        continue;
+                    }
+                    let found = closest_on_triangle(pd, &record.corners);
+                    let better = match best {
+                        None => true,
+                        Some((d2, prim, _)) => {
+                            found.distance2 < d2 || (found.distance2 == d2 && record.prim < prim)
+                        }
+                    };
+                    if better {
+                        best = Some((found.distance2, record.prim, found.weights));
+                        let bound = found.distance2.sqrt() + slack;
+                        limit = bound * bound;
+                    }
+                }
+            } else {
+                let (axis, split) = (node.axis(), node.split());
+                let left = node.left();
+                // The child holding the point first: it is as far as this node. The other is
+                // as far along this axis as the plane.
+                let (near, far) = if p[axis] < split {
+                    (left, left + 1)
+                } else {
+                    (left + 1, left)
+                };
+                let gap = (split as f64 - pd[axis]).abs();
+                let old = current.offset[axis];
+                let far_d2 = current.distance2 - old * old + gap * gap;
+                if far_d2 <= limit {
+                    let mut offset = current.offset;
+                    offset[axis] = gap;
+                    stack[top] = MaybeUninit::new(Pending {
+                        node: far,
+                        distance2: far_d2,
+                        offset,
+                    });
+                    top += 1;
+                }
+                current.node = near;
+                continue;
+            }
+        }
+        if top == 0 {
+            break;
+        }
+        top -= 1;
+        // SAFETY: entries below `top` were all written by a push.
+        current = unsafe { stack[top].assume_init() };
+    }
+    best.map(|(d2, prim, weights)| {
+        ClosestPoint::new(d2, prim, weights, &tree.triangles[prim as usize])
+    })
+}
