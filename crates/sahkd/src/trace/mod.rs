@@ -22,7 +22,7 @@ use layout::TriangleRecord;
 pub use triangle::{ShearedRay, TriangleHit};
 
 use crate::cost::MAX_DEPTH_CAP;
-use crate::geometry::Vec3;
+use crate::geometry::{Aabb, Vec3};
 use crate::tree::KdTree;
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
@@ -132,6 +132,17 @@ impl Ray {
     pub fn at(&self, t: f32) -> Vec3 {
         self.origin + self.direction * t
     }
+    /// The ray in a scene scaled by `s`: the origin moves, the direction stays, so
+    /// distances scale by `s`.
+    #[inline(always)]
+    fn scaled(&self, s: f32) -> Ray {
+        Ray {
+            origin: self.origin * s,
+            direction: self.direction,
+            t_min: self.t_min * s,
+            t_max: self.t_max * s,
+        }
+    }
 }
 
 /// The closest hit of a ray: distance, triangle and barycentrics `(u, v)` of corners 1 and 2.
@@ -204,10 +215,10 @@ struct Pending {
     t1: f32,
 }
 
-/// Slab test against the tree's box; a zero direction component checks the origin instead.
+/// Slab test against the (scaled) tree's box; a zero direction component checks the origin
+/// instead.
 #[inline(always)]
-fn clip_to_box(tree: &KdTree, ray: &Ray, inv: &Vec3) -> Option<(f32, f32)> {
-    let b = tree.bounds;
+fn clip_to_box(b: &Aabb, ray: &Ray, inv: &Vec3) -> Option<(f32, f32)> {
     let (mut t0, mut t1) = (ray.t_min, ray.t_max);
     for a in 0..3 {
         if inv[a].is_finite() {
@@ -254,7 +265,7 @@ impl KdTree {
     /// sorted by distance.
     pub fn for_each_hit(&self, ray: &Ray, mut f: impl FnMut(Hit)) {
         self.walk(ray, &mut (), |hit, _| {
-            f(hit);
+            f(self.finish(hit));
             false
         });
     }
@@ -319,7 +330,16 @@ impl KdTree {
             }
             false
         });
-        best
+        best.map(|h| self.finish(h))
+    }
+
+    /// A hit of the walk (in the layout's scaled units) in the caller's.
+    #[inline(always)]
+    fn finish(&self, hit: Hit) -> Hit {
+        Hit {
+            t: hit.t * self.trace_layout().inv_scale,
+            ..hit
+        }
     }
 
     #[inline(always)]
@@ -346,9 +366,14 @@ impl KdTree {
             return;
         }
         let layout = self.trace_layout();
+        // An origin beyond float32 once scaled lies more than 1e38 scene sizes away.
+        let ray = &ray.scaled(layout.scale);
+        if !ray.origin.is_finite() {
+            return;
+        }
         let d = ray.direction;
         let inv = Vec3([1.0 / d[0], 1.0 / d[1], 1.0 / d[2]]);
-        let Some((mut t0, mut t1)) = clip_to_box(self, ray, &inv) else {
+        let Some((mut t0, mut t1)) = clip_to_box(&layout.bounds, ray, &inv) else {
             return;
         };
         // The child on the ray's incoming side of a plane is "near". With a zero direction

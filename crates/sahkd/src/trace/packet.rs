@@ -106,6 +106,8 @@ impl KdTree {
             return;
         }
         let layout = self.trace_layout();
+        let rays: [Ray; N] = std::array::from_fn(|i| rays[i].scaled(layout.scale));
+        let rays = &rays;
         let mut origin = [[0.0f32; N]; 3];
         let mut inv = [[0.0f32; N]; 3];
         let mut t0 = [0.0f32; N];
@@ -122,8 +124,8 @@ impl KdTree {
             }
             t_min[i] = ray.t_min;
             limit[i] = ray.t_max;
-            if ray.is_valid() {
-                if let Some((a, b)) = clip_to_box(self, ray, &lane_inv) {
+            if ray.is_valid() && ray.origin.is_finite() {
+                if let Some((a, b)) = clip_to_box(&layout.bounds, ray, &lane_inv) {
                     (t0[i], t1[i]) = (a, b);
                     mask |= 1 << i;
                 }
@@ -230,7 +232,9 @@ impl KdTree {
                     }
                     false
                 });
-                out.copy_from_slice(&best);
+                for (o, b) in out.iter_mut().zip(best) {
+                    *o = b.map(|h| self.finish(h));
+                }
             }
             _ => {
                 for (o, r) in out.iter_mut().zip(rays) {
