@@ -319,3 +319,60 @@ fn a_ray_starting_on_a_triangle_hits_it_at_zero() {
     }
     assert!(checked > 1500, "{checked}");
 }
+
+/// On needle-thin triangles the reported `t` is float32-accurate against float64 (the
+/// float32 watertight distance, which queries reported before, is measured beside it).
+#[test]
+fn needle_thin_triangles_get_accurate_distances() {
+    let mut rng = rng(145);
+    let mut tris = Vec::new();
+    for i in 0..300 {
+        let p = Vec3(std::array::from_fn(|_| rng.random_range(-1.0f32..1.0)));
+        let long = Vec3(std::array::from_fn(|_| rng.random_range(-1.0f32..1.0)));
+        let side = Vec3(std::array::from_fn(|_| rng.random_range(-1.0f32..1.0)));
+        let width = 10f32.powi(-3 - (i % 4)); // 1e-3 .. 1e-6
+        let along: f32 = rng.random_range(0.2..0.8);
+        tris.push([p, p + long, p + long * along + side * width]);
+    }
+    let tree = tree_of(&tris);
+    let (mut worst_tree, mut worst_f32, mut hits) = (0.0f64, 0.0f64, 0);
+    for _ in 0..6000 {
+        let k = rng.random_range(0..tris.len());
+        let t = tris[k];
+        let w: [f64; 3] = {
+            let (a, b) = (rng.random::<f64>(), rng.random::<f64>());
+            let (a, b) = if a + b > 1.0 {
+                (1.0 - a, 1.0 - b)
+            } else {
+                (a, b)
+            };
+            [1.0 - a - b, a, b]
+        };
+        let target: V = std::array::from_fn(|c| (0..3).map(|j| w[j] * t[j][c] as f64).sum::<f64>());
+        let origin = Vec3(std::array::from_fn(|_| rng.random_range(-2.0f32..2.0)));
+        let d = sub(target, v64(origin));
+        let ray = Ray::new(origin, Vec3(d.map(|x| x as f32)));
+        let Some(hit) = tree.intersect(&ray) else {
+            continue;
+        };
+        // Grazing rays and hits on a needle's edge (outside by float64's barycentrics) have
+        // no well-defined distance to compare with.
+        let Some(want) = hits64(&tris, &ray).into_iter().find(|h| h.prim == hit.prim) else {
+            continue;
+        };
+        let rel = |t: f32| (t as f64 - want.t).abs() / want.t;
+        worst_tree = worst_tree.max(rel(hit.t));
+        let raw = sahkd::trace::ShearedRay::new(&ray)
+            .intersect(&tris[hit.prim as usize], 0.0, f32::INFINITY)
+            .expect("the float32 test hits it");
+        worst_f32 = worst_f32.max(rel(raw.t));
+        hits += 1;
+    }
+    eprintln!("{hits} needle hits: worst relative t error {worst_tree:e} (float32 test alone {worst_f32:e})");
+    assert!(hits > 4000, "{hits}");
+    assert!(worst_tree < 2e-7, "{worst_tree:e}");
+    assert!(
+        worst_f32 > 1e-6,
+        "the float32 distance is no worse: {worst_f32:e}"
+    );
+}

@@ -4,7 +4,7 @@
 //! traversal, so a tree that loses, misplaces or mis-orders a triangle shows up as a
 //! disagreement with it.
 
-use super::{Hit, Ray, ShearedRay};
+use super::{finish_hit, layout::reach_of, Hit, Ray, ShearedRay};
 use crate::geometry::{scene_scale, triangle_bounds, Aabb, Triangle};
 
 /// The scale the tree of these triangles is traced at, the ray scaled by it, and the test.
@@ -17,10 +17,11 @@ fn prepare(triangles: &[Triangle], ray: &Ray) -> Option<(f32, ShearedRay, Ray)> 
         .fold(Aabb::EMPTY, |b, t| b.union(triangle_bounds(t)));
     let scale = scene_scale(&bounds);
     let scaled = ray.scaled(scale);
+    let reach = reach_of(&bounds.scaled(scale));
     scaled
         .origin
         .is_finite()
-        .then(|| (scale, ShearedRay::new(&scaled), scaled))
+        .then(|| (scale, ShearedRay::with_reach(&scaled, reach), scaled))
 }
 
 /// Calls `f` with the hit of every triangle hit in `[ray.t_min, ray.t_max]`, in triangle
@@ -30,14 +31,14 @@ pub fn for_each_hit(triangles: &[Triangle], ray: &Ray, mut f: impl FnMut(Hit)) {
         return;
     };
     for (i, tri) in triangles.iter().enumerate() {
-        let tri = tri.map(|v| v * scale);
-        if let Some(h) = sheared.intersect(&tri, scaled.t_min, scaled.t_max) {
-            f(Hit {
-                t: h.t * (1.0 / scale),
+        if let Some(h) = sheared.intersect(&tri.map(|v| v * scale), scaled.t_min, scaled.t_max) {
+            let hit = Hit {
+                t: h.t,
                 prim: i as u32,
                 u: h.u,
                 v: h.v,
-            });
+            };
+            f(finish_hit(tri, ray, hit, 1.0 / scale));
         }
     }
 }
@@ -62,10 +63,7 @@ pub fn intersect(triangles: &[Triangle], ray: &Ray) -> Option<Hit> {
             }
         }
     }
-    best.map(|h| Hit {
-        t: h.t * (1.0 / scale),
-        ..h
-    })
+    best.map(|h| finish_hit(&triangles[h.prim as usize], ray, h, 1.0 / scale))
 }
 
 /// Whether any triangle is hit.

@@ -34,6 +34,8 @@ pub(crate) struct TraceLayout {
     pub scale: f32,
     /// `1 / scale`, exact.
     pub inv_scale: f32,
+    /// The scaled box's largest extent (see [`ShearedRay::with_reach`](super::ShearedRay)).
+    pub reach: f32,
 }
 
 impl TraceLayout {
@@ -67,6 +69,7 @@ impl TraceLayout {
             nodes,
             triangles,
             bounds: tree.bounds.scaled(scale),
+            reach: reach_of(&tree.bounds.scaled(scale)),
             scale,
             inv_scale: 1.0 / scale,
         }
@@ -78,6 +81,15 @@ impl TraceLayout {
         let first = node.first() as usize;
         &self.triangles[first..first + node.count() as usize]
     }
+}
+
+/// The largest extent of a box (0 for an empty one).
+pub(crate) fn reach_of(b: &Aabb) -> f32 {
+    if b.is_empty() {
+        return 0.0;
+    }
+    let e = b.extent();
+    e[0].max(e[1]).max(e[2])
 }
 
 #[cfg(test)]

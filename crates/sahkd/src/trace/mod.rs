@@ -22,7 +22,7 @@ use layout::TriangleRecord;
 pub use triangle::{ShearedRay, TriangleHit};
 
 use crate::cost::MAX_DEPTH_CAP;
-use crate::geometry::{Aabb, Vec3};
+use crate::geometry::{Aabb, Triangle, Vec3};
 use crate::tree::KdTree;
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
@@ -93,6 +93,21 @@ fn visit_leaf(
             rest.len(),
             limit,
         ),
+    }
+}
+
+/// The hit `hit` of the float32 test (its `t` in a scene scaled by `1 / inv_scale`) as
+/// queries report it: `t` recomputed in f64 from the plane of `tri` (the caller's triangle)
+/// and kept within the ray's range; the float32 one only if the plane gives none.
+#[inline(always)]
+fn finish_hit(tri: &Triangle, ray: &Ray, hit: Hit, inv_scale: f32) -> Hit {
+    let t = match triangle::plane_distance(tri, ray) {
+        Some(t) => t as f32,
+        None => hit.t * inv_scale,
+    };
+    Hit {
+        t: t.max(ray.t_min).min(ray.t_max),
+        ..hit
     }
 }
 
@@ -265,7 +280,7 @@ impl KdTree {
     /// sorted by distance.
     pub fn for_each_hit(&self, ray: &Ray, mut f: impl FnMut(Hit)) {
         self.walk(ray, &mut (), |hit, _| {
-            f(self.finish(hit));
+            f(self.finish(ray, hit));
             false
         });
     }
@@ -330,16 +345,14 @@ impl KdTree {
             }
             false
         });
-        best.map(|h| self.finish(h))
+        best.map(|h| self.finish(ray, h))
     }
 
-    /// A hit of the walk (in the layout's scaled units) in the caller's.
+    /// A hit of the walk (its `t` in the layout's scaled units) as the query reports it.
     #[inline(always)]
-    fn finish(&self, hit: Hit) -> Hit {
-        Hit {
-            t: hit.t * self.trace_layout().inv_scale,
-            ..hit
-        }
+    fn finish(&self, ray: &Ray, hit: Hit) -> Hit {
+        let tri = &self.triangles[hit.prim as usize];
+        finish_hit(tri, ray, hit, self.trace_layout().inv_scale)
     }
 
     #[inline(always)]
@@ -421,7 +434,8 @@ impl KdTree {
                 let records = layout.leaf(node);
                 if !records.is_empty() {
                     counters.leaf();
-                    let sheared = sheared.get_or_insert_with(|| ShearedRay::new(ray));
+                    let sheared =
+                        sheared.get_or_insert_with(|| ShearedRay::with_reach(ray, layout.reach));
                     if visit_leaf(
                         sheared, records, ray.t_min, &mut limit, counters, &mut visit,
                     ) {

@@ -185,8 +185,9 @@ impl KdTree {
                 }
                 let records = layout.leaf(node);
                 if !records.is_empty() {
-                    let sheared = sheared
-                        .get_or_insert_with(|| std::array::from_fn(|i| ShearedRay::new(&rays[i])));
+                    let sheared = sheared.get_or_insert_with(|| {
+                        std::array::from_fn(|i| ShearedRay::with_reach(&rays[i], layout.reach))
+                    });
                     // Lane after lane: each lane sees its hits in the leaf's order, as its
                     // single-ray walk does.
                     let mut bits = m;
@@ -232,8 +233,8 @@ impl KdTree {
                     }
                     false
                 });
-                for (o, b) in out.iter_mut().zip(best) {
-                    *o = b.map(|h| self.finish(h));
+                for ((o, b), r) in out.iter_mut().zip(best).zip(rays) {
+                    *o = b.map(|h| self.finish(r, h));
                 }
             }
             _ => {
