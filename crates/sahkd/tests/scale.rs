@@ -193,7 +193,7 @@ fn random_soups_far_from_the_origin_match_float64() {
     let mut rng = rng(141);
     let unit = random_triangles(&mut rng, 400);
     // The soup's own extent against its distance from the origin, 1e-5 or 1e-3 (float32
-    // corners at 1e15 are multiples of 2^27, 1.3e8).
+    // corners at 1e15 are multiples of 2^26, 6.7e7).
     let cases = [
         (1e10f32, 1e15f32),
         (1e12, 1e15),
