@@ -8,7 +8,6 @@
 //! triangle hit is reported once, sorted by distance then index. The result is exactly the
 //! set the brute-force oracle [`brute_all_hits`] finds.
 
-use sahkd::trace::ShearedRay;
 use sahkd::{Hit, KdTree, Ray};
 
 /// Sorts hits by distance then triangle and drops repeats of a triangle (one referenced by
@@ -29,19 +28,6 @@ pub fn all_hits(tree: &KdTree, ray: &Ray, out: &mut Vec<Hit>) {
 /// [`all_hits`] and the core's queries.
 pub fn brute_all_hits(tree: &KdTree, ray: &Ray, out: &mut Vec<Hit>) {
     out.clear();
-    if !ray.is_valid() {
-        return;
-    }
-    let sheared = ShearedRay::new(ray);
-    for (prim, tri) in tree.triangles().iter().enumerate() {
-        if let Some(h) = sheared.intersect(tri, ray.t_min, ray.t_max) {
-            out.push(Hit {
-                t: h.t,
-                prim: prim as u32,
-                u: h.u,
-                v: h.v,
-            });
-        }
-    }
+    sahkd::trace::brute::for_each_hit(tree.triangles(), ray, |h| out.push(h));
     finish(out);
 }

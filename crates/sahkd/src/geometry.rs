@@ -136,13 +136,22 @@ impl Aabb {
             2
         }
     }
+    /// In f64 from f64 differences, so that boxes spanning more than the float32 range
+    /// (+-3e38) have a finite area.
     pub fn surface_area(&self) -> f64 {
         if self.is_empty() {
             return 0.0;
         }
-        let d = self.extent();
-        let (x, y, z) = (d[0] as f64, d[1] as f64, d[2] as f64);
+        let d = |a: usize| self.hi[a] as f64 - self.lo[a] as f64;
+        let (x, y, z) = (d(0), d(1), d(2));
         2.0 * (x * y + y * z + z * x)
+    }
+    /// The box with both corners multiplied by `s`.
+    pub fn scaled(&self, s: f32) -> Aabb {
+        Aabb {
+            lo: self.lo * s,
+            hi: self.hi * s,
+        }
     }
     pub fn centre(&self) -> Vec3 {
         (self.lo + self.hi) * 0.5
@@ -158,6 +167,36 @@ impl Aabb {
         right.lo[axis] = pos;
         (left, right)
     }
+}
+
+/// Scenes whose largest extent lies in `[2^-SCALE_WINDOW, 2^(SCALE_WINDOW + 1))` are built
+/// and traced in their own coordinates.
+pub const SCALE_WINDOW: i32 = 20;
+
+/// The power of two the builder and the ray queries multiply a scene's coordinates (and ray
+/// origins) by: 1 for scenes whose largest extent is within [`SCALE_WINDOW`], so that their
+/// trees and answers are those of their own coordinates; for others, the power that brings
+/// the largest extent into `[1, 2)`. Multiplying by a power of two is exact, so the scaled
+/// scene is the scene; what it avoids is float32 products of coordinates (the watertight
+/// test's edge functions and distance, squares and cubes of the scene's size) overflowing
+/// beyond 1e38 or losing bits below 1e-38. Kept within `[2^-126, 2^126]`, so that both it
+/// and its inverse are normal floats.
+pub fn scene_scale(bounds: &Aabb) -> f32 {
+    if bounds.is_empty() {
+        return 1.0;
+    }
+    let extent = (0..3)
+        .map(|a| bounds.hi[a] as f64 - bounds.lo[a] as f64)
+        .fold(0.0f64, f64::max);
+    if !(extent > 0.0 && extent.is_finite()) {
+        return 1.0;
+    }
+    // The binary exponent of a normal f64 (every difference of two float32 is one).
+    let exponent = ((extent.to_bits() >> 52) & 0x7ff) as i32 - 1023;
+    if exponent.abs() <= SCALE_WINDOW {
+        return 1.0;
+    }
+    f32::from_bits(((127 - exponent.clamp(-126, 126)) as u32) << 23)
 }
 
 /// A triangle as its three corners.

@@ -16,7 +16,7 @@ mod sweep;
 pub use options::{Algorithm, Axes, BuildOptions, Counting};
 pub use report::{BuildReport, LevelReport, PhaseTimes};
 
-use crate::geometry::{triangle_bounds, Aabb, Triangle};
+use crate::geometry::{scene_scale, triangle_bounds, Aabb, Triangle};
 use crate::mesh::{Mesh, MeshError};
 use crate::tree::{KdTree, Node};
 use std::fmt;
@@ -112,19 +112,37 @@ fn run(triangles: Vec<Triangle>, options: &BuildOptions) -> Build {
             report: BuildReport::default(),
         };
     }
-    let boxes: Vec<Aabb> = triangles.iter().map(triangle_bounds).collect();
-    let bounds = boxes.iter().fold(Aabb::EMPTY, |b, &t| b.union(t));
-    let prims = Primitives {
-        triangles: &triangles,
-        boxes,
-        bounds,
+    let bounds = triangles
+        .iter()
+        .fold(Aabb::EMPTY, |b, t| b.union(triangle_bounds(t)));
+    // Scenes too large or too small for float32 products of their coordinates are built
+    // scaled by a power of two (exact), and the planes scaled back; others as they are.
+    let scale = scene_scale(&bounds);
+    let scaled: Vec<Triangle>;
+    let build_triangles = if scale == 1.0 {
+        &triangles
+    } else {
+        scaled = triangles.iter().map(|t| t.map(|v| v * scale)).collect();
+        &scaled
     };
-    let built = match options.algorithm {
+    let boxes: Vec<Aabb> = build_triangles.iter().map(triangle_bounds).collect();
+    let prims = Primitives {
+        triangles: build_triangles,
+        boxes,
+        bounds: bounds.scaled(scale),
+    };
+    let mut built = match options.algorithm {
         Algorithm::Sweep => sweep::build(&prims, options),
         Algorithm::Level | Algorithm::Naive => level::build(&prims, options),
         Algorithm::Median => median::build(&prims, options),
         Algorithm::Hybrid => hybrid::build(&prims, options),
     };
+    if scale != 1.0 {
+        let back = 1.0 / scale;
+        for node in built.nodes.iter_mut().filter(|n| !n.is_leaf()) {
+            *node = Node::interior(node.axis(), node.split() * back, node.left());
+        }
+    }
     let mut report = built.report;
     report.build_ms = start.elapsed().as_secs_f64() * 1e3;
     Build {

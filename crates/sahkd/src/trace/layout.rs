@@ -11,8 +11,10 @@
 //!   index lookup and a random read per triangle.
 //!
 //! The node format is the tree's own ([`Node`]); a leaf's `first` indexes `triangles` here.
+//! Corners, planes and box are multiplied by the scene's [`scene_scale`] (1 for most scenes),
+//! and rays' origins with them, so that the ray/triangle test works in float32's range.
 
-use crate::geometry::Triangle;
+use crate::geometry::{scene_scale, Aabb, Triangle};
 use crate::tree::{KdTree, Node};
 
 /// One triangle of a leaf: its corners and its index in the tree's triangle list.
@@ -26,11 +28,20 @@ pub(crate) struct TriangleRecord {
 pub(crate) struct TraceLayout {
     pub nodes: Vec<Node>,
     pub triangles: Vec<TriangleRecord>,
+    /// The tree's box, scaled.
+    pub bounds: Aabb,
+    /// What coordinates here are the tree's times: a power of two.
+    pub scale: f32,
+    /// `1 / scale`, exact.
+    pub inv_scale: f32,
+    /// The scaled box's largest extent (see [`ShearedRay::with_reach`](super::ShearedRay)).
+    pub reach: f32,
 }
 
 impl TraceLayout {
     pub fn new(tree: &KdTree) -> TraceLayout {
         let old = tree.nodes();
+        let scale = scene_scale(&tree.bounds);
         let mut nodes = vec![Node::leaf(0, 0); old.len().max(1)];
         let mut triangles = Vec::with_capacity(tree.refs().len());
         let mut next = 1u32;
@@ -41,7 +52,7 @@ impl TraceLayout {
             nodes[to as usize] = if node.is_leaf() {
                 let first = triangles.len() as u32;
                 triangles.extend(tree.leaf_refs(node).iter().map(|&prim| TriangleRecord {
-                    corners: tree.triangles()[prim as usize],
+                    corners: tree.triangles()[prim as usize].map(|v| v * scale),
                     prim,
                 }));
                 Node::leaf(first, node.count())
@@ -50,11 +61,18 @@ impl TraceLayout {
                 next += 2;
                 stack.push((node.left() + 1, pair + 1));
                 stack.push((node.left(), pair));
-                Node::interior(node.axis(), node.split(), pair)
+                Node::interior(node.axis(), node.split() * scale, pair)
             };
         }
         nodes.truncate(next as usize);
-        TraceLayout { nodes, triangles }
+        TraceLayout {
+            nodes,
+            triangles,
+            bounds: tree.bounds.scaled(scale),
+            reach: reach_of(&tree.bounds.scaled(scale)),
+            scale,
+            inv_scale: 1.0 / scale,
+        }
     }
 
     /// The triangles of a leaf of this layout.
@@ -63,6 +81,15 @@ impl TraceLayout {
         let first = node.first() as usize;
         &self.triangles[first..first + node.count() as usize]
     }
+}
+
+/// The largest extent of a box (0 for an empty one).
+pub(crate) fn reach_of(b: &Aabb) -> f32 {
+    if b.is_empty() {
+        return 0.0;
+    }
+    let e = b.extent();
+    e[0].max(e[1]).max(e[2])
 }
 
 #[cfg(test)]

@@ -22,7 +22,7 @@ use layout::TriangleRecord;
 pub use triangle::{ShearedRay, TriangleHit};
 
 use crate::cost::MAX_DEPTH_CAP;
-use crate::geometry::Vec3;
+use crate::geometry::{Aabb, Triangle, Vec3};
 use crate::tree::KdTree;
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
@@ -96,6 +96,21 @@ fn visit_leaf(
     }
 }
 
+/// The hit `hit` of the float32 test (its `t` in a scene scaled by `1 / inv_scale`) as
+/// queries report it: `t` recomputed in f64 from the plane of `tri` (the caller's triangle)
+/// and kept within the ray's range; the float32 one only if the plane gives none.
+#[inline(always)]
+fn finish_hit(tri: &Triangle, ray: &Ray, hit: Hit, inv_scale: f32) -> Hit {
+    let t = match triangle::plane_distance(tri, ray) {
+        Some(t) => t as f32,
+        None => hit.t * inv_scale,
+    };
+    Hit {
+        t: t.max(ray.t_min).min(ray.t_max),
+        ..hit
+    }
+}
+
 /// A ray `origin + t * direction` for `t` in `[t_min, t_max]`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
@@ -131,6 +146,17 @@ impl Ray {
     }
     pub fn at(&self, t: f32) -> Vec3 {
         self.origin + self.direction * t
+    }
+    /// The ray in a scene scaled by `s`: the origin moves, the direction stays, so
+    /// distances scale by `s`.
+    #[inline(always)]
+    fn scaled(&self, s: f32) -> Ray {
+        Ray {
+            origin: self.origin * s,
+            direction: self.direction,
+            t_min: self.t_min * s,
+            t_max: self.t_max * s,
+        }
     }
 }
 
@@ -204,10 +230,10 @@ struct Pending {
     t1: f32,
 }
 
-/// Slab test against the tree's box; a zero direction component checks the origin instead.
+/// Slab test against the (scaled) tree's box; a zero direction component checks the origin
+/// instead.
 #[inline(always)]
-fn clip_to_box(tree: &KdTree, ray: &Ray, inv: &Vec3) -> Option<(f32, f32)> {
-    let b = tree.bounds;
+fn clip_to_box(b: &Aabb, ray: &Ray, inv: &Vec3) -> Option<(f32, f32)> {
     let (mut t0, mut t1) = (ray.t_min, ray.t_max);
     for a in 0..3 {
         if inv[a].is_finite() {
@@ -254,7 +280,7 @@ impl KdTree {
     /// sorted by distance.
     pub fn for_each_hit(&self, ray: &Ray, mut f: impl FnMut(Hit)) {
         self.walk(ray, &mut (), |hit, _| {
-            f(hit);
+            f(self.finish(ray, hit));
             false
         });
     }
@@ -319,7 +345,14 @@ impl KdTree {
             }
             false
         });
-        best
+        best.map(|h| self.finish(ray, h))
+    }
+
+    /// A hit of the walk (its `t` in the layout's scaled units) as the query reports it.
+    #[inline(always)]
+    fn finish(&self, ray: &Ray, hit: Hit) -> Hit {
+        let tri = &self.triangles[hit.prim as usize];
+        finish_hit(tri, ray, hit, self.trace_layout().inv_scale)
     }
 
     #[inline(always)]
@@ -346,9 +379,14 @@ impl KdTree {
             return;
         }
         let layout = self.trace_layout();
+        // An origin beyond float32 once scaled lies more than 1e38 scene sizes away.
+        let ray = &ray.scaled(layout.scale);
+        if !ray.origin.is_finite() {
+            return;
+        }
         let d = ray.direction;
         let inv = Vec3([1.0 / d[0], 1.0 / d[1], 1.0 / d[2]]);
-        let Some((mut t0, mut t1)) = clip_to_box(self, ray, &inv) else {
+        let Some((mut t0, mut t1)) = clip_to_box(&layout.bounds, ray, &inv) else {
             return;
         };
         // The child on the ray's incoming side of a plane is "near". With a zero direction
@@ -396,7 +434,8 @@ impl KdTree {
                 let records = layout.leaf(node);
                 if !records.is_empty() {
                     counters.leaf();
-                    let sheared = sheared.get_or_insert_with(|| ShearedRay::new(ray));
+                    let sheared =
+                        sheared.get_or_insert_with(|| ShearedRay::with_reach(ray, layout.reach));
                     if visit_leaf(
                         sheared, records, ray.t_min, &mut limit, counters, &mut visit,
                     ) {

@@ -106,6 +106,8 @@ impl KdTree {
             return;
         }
         let layout = self.trace_layout();
+        let rays: [Ray; N] = std::array::from_fn(|i| rays[i].scaled(layout.scale));
+        let rays = &rays;
         let mut origin = [[0.0f32; N]; 3];
         let mut inv = [[0.0f32; N]; 3];
         let mut t0 = [0.0f32; N];
@@ -122,8 +124,8 @@ impl KdTree {
             }
             t_min[i] = ray.t_min;
             limit[i] = ray.t_max;
-            if ray.is_valid() {
-                if let Some((a, b)) = clip_to_box(self, ray, &lane_inv) {
+            if ray.is_valid() && ray.origin.is_finite() {
+                if let Some((a, b)) = clip_to_box(&layout.bounds, ray, &lane_inv) {
                     (t0[i], t1[i]) = (a, b);
                     mask |= 1 << i;
                 }
@@ -183,8 +185,9 @@ impl KdTree {
                 }
                 let records = layout.leaf(node);
                 if !records.is_empty() {
-                    let sheared = sheared
-                        .get_or_insert_with(|| std::array::from_fn(|i| ShearedRay::new(&rays[i])));
+                    let sheared = sheared.get_or_insert_with(|| {
+                        std::array::from_fn(|i| ShearedRay::with_reach(&rays[i], layout.reach))
+                    });
                     // Lane after lane: each lane sees its hits in the leaf's order, as its
                     // single-ray walk does.
                     let mut bits = m;
@@ -230,7 +233,9 @@ impl KdTree {
                     }
                     false
                 });
-                out.copy_from_slice(&best);
+                for ((o, b), r) in out.iter_mut().zip(best).zip(rays) {
+                    *o = b.map(|h| self.finish(r, h));
+                }
             }
             _ => {
                 for (o, r) in out.iter_mut().zip(rays) {

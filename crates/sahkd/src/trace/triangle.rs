@@ -5,6 +5,12 @@
 //! vertex hits at least one of the triangles meeting there. When an edge function comes out
 //! exactly zero it is recomputed in f64, as the paper recommends.
 //!
+//! Its float32 distance decides which triangle is nearest; the distance a query reports is
+//! then [`plane_distance`]'s, in f64 (well conditioned on needle-thin triangles, where the
+//! float32 one was off by up to 2.4e-4). A hit just short of `t_min` by the float32 distance
+//! (within the ray's `band`, a small fraction of the scene's size) is decided by the f64
+//! one, so that a ray starting on a triangle hits it at `t = 0`.
+//!
 //! [`ShearedRay::intersect4`] tests four triangles against one ray with the same operations in
 //! the same order, one triangle per SSE lane (x86_64's baseline, so no run-time detection), so
 //! each lane's answer is the one-triangle test's, bit for bit; elsewhere it loops over the
@@ -17,12 +23,15 @@ use crate::geometry::{Triangle, Vec3};
 #[derive(Clone, Copy, Debug)]
 pub struct ShearedRay {
     origin: Vec3,
+    direction: Vec3,
     kx: usize,
     ky: usize,
     kz: usize,
     sx: f32,
     sy: f32,
     sz: f32,
+    /// How far below `t_min` a float32 distance is checked again in f64.
+    band: f32,
 }
 
 /// Distance and barycentrics of a hit: the point is `(1 - u - v) * v0 + u * v1 + v * v2`.
@@ -33,8 +42,41 @@ pub struct TriangleHit {
     pub v: f32,
 }
 
+/// The distance along `ray` to the plane of `tri`, in f64, or `None` for a ray parallel to
+/// it. From the corner nearest the origin, so that an origin on a corner gives exactly 0.
+#[inline(never)]
+pub fn plane_distance(tri: &Triangle, ray: &Ray) -> Option<f64> {
+    let p = tri.map(|v| v.0.map(|c| c as f64));
+    let o = ray.origin.0.map(|c| c as f64);
+    let d = ray.direction.0.map(|c| c as f64);
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let (e1, e2) = (sub(p[1], p[0]), sub(p[2], p[0]));
+    let n = [
+        e1[1] * e2[2] - e1[2] * e2[1],
+        e1[2] * e2[0] - e1[0] * e2[2],
+        e1[0] * e2[1] - e1[1] * e2[0],
+    ];
+    let den = dot(n, d);
+    let to = p.map(|c| sub(c, o));
+    let size = |v: [f64; 3]| v[0].abs() + v[1].abs() + v[2].abs();
+    let near = (0..3)
+        .min_by(|&a, &b| size(to[a]).total_cmp(&size(to[b])))
+        .unwrap_or(0);
+    let t = dot(n, to[near]) / den;
+    t.is_finite().then_some(t)
+}
+
 impl ShearedRay {
+    /// The test for `ray` alone: no hit short of `t_min` is checked again.
     pub fn new(ray: &Ray) -> ShearedRay {
+        ShearedRay::with_reach(ray, 0.0)
+    }
+
+    /// The test for `ray` in a scene whose largest extent is `reach`: a float32 distance
+    /// short of `t_min` by less than `2^-16` of the distance the ray takes to cross it (the
+    /// float32 error is a few `2^-24` of that) is checked again in f64.
+    pub fn with_reach(ray: &Ray, reach: f32) -> ShearedRay {
         let d = ray.direction;
         let abs = [d[0].abs(), d[1].abs(), d[2].abs()];
         let kz = if abs[0] >= abs[1] && abs[0] >= abs[2] {
@@ -52,12 +94,14 @@ impl ShearedRay {
         }
         ShearedRay {
             origin: ray.origin,
+            direction: ray.direction,
             kx,
             ky,
             kz,
             sx: d[kx] / d[kz],
             sy: d[ky] / d[kz],
             sz: 1.0 / d[kz],
+            band: reach * (1.0 / 65536.0) / d[kz].abs(),
         }
     }
 
@@ -98,9 +142,22 @@ impl ShearedRay {
         let bz = self.sz * b[kz];
         let cz = self.sz * c[kz];
         let inv = 1.0 / det;
-        let t = (eu * az + ev * bz + ew * cz) * inv;
+        let mut t = (eu * az + ev * bz + ew * cz) * inv;
         if !((t >= t_min) & (t <= t_max)) {
-            return None;
+            if !((t < t_min) & (t >= t_min - self.band)) {
+                return None;
+            }
+            // Just short of t_min (an origin on the triangle, or nearly): f64 decides.
+            let ray = Ray {
+                origin: self.origin,
+                direction: self.direction,
+                t_min,
+                t_max,
+            };
+            match plane_distance(tri, &ray) {
+                Some(d) if d >= t_min as f64 && d <= t_max as f64 => t = d as f32,
+                _ => return None,
+            }
         }
         Some(TriangleHit {
             t,
@@ -174,7 +231,7 @@ impl ShearedRay {
             let zero = _mm_setzero_ps();
             // Lanes with an edge function of exactly zero take the one-triangle test (and its
             // f64 recomputation) below.
-            let exact = _mm_movemask_ps(_mm_or_ps(
+            let mut exact = _mm_movemask_ps(_mm_or_ps(
                 _mm_or_ps(_mm_cmpeq_ps(eu, zero), _mm_cmpeq_ps(ev, zero)),
                 _mm_cmpeq_ps(ew, zero),
             )) as u32;
@@ -200,13 +257,18 @@ impl ShearedRay {
             );
             // Not (mixed signs), det != 0 (an unordered det is kept, as `det == 0.0` is false
             // for it), t_min <= t <= t_max (false for NaN).
+            let rejected = _mm_or_ps(_mm_and_ps(negative, positive), _mm_cmpeq_ps(det, zero));
+            let above_min = _mm_cmpge_ps(t, _mm_set1_ps(t_min));
             let keep = _mm_andnot_ps(
-                _mm_or_ps(_mm_and_ps(negative, positive), _mm_cmpeq_ps(det, zero)),
-                _mm_and_ps(
-                    _mm_cmpge_ps(t, _mm_set1_ps(t_min)),
-                    _mm_cmple_ps(t, _mm_set1_ps(t_max)),
-                ),
+                rejected,
+                _mm_and_ps(above_min, _mm_cmple_ps(t, _mm_set1_ps(t_max))),
             );
+            // Hits just short of t_min are decided by the one-triangle test too.
+            let short = _mm_andnot_ps(
+                _mm_or_ps(rejected, above_min),
+                _mm_cmpge_ps(t, _mm_set1_ps(t_min - self.band)),
+            );
+            exact |= _mm_movemask_ps(short) as u32;
             let mut hits = Hits4 {
                 mask: _mm_movemask_ps(keep) as u32 & !exact,
                 t: [0.0; 4],
@@ -362,7 +424,14 @@ mod tests {
                     [a, point(grid), point(grid)]
                 }
             });
-            let origin = point(grid) + Vec3::new(0.0, 0.0, -5.0);
+            // Some rays start inside another of the triangles or on its edge, where the
+            // float32 distance is about 0, a little short of `t_min` or not.
+            let on = &tris[(case + 1) % 4];
+            let origin = match case % 5 {
+                0 | 1 => (on[0] + on[1] + on[2]) * (1.0 / 3.0),
+                2 => (on[1] + on[2]) * 0.5,
+                _ => point(grid) + Vec3::new(0.0, 0.0, -5.0),
+            };
             // At a corner, an edge's midpoint or the centre of one of the triangles.
             let [a, b, c] = tris[case % 4];
             let target = match case % 3 {
@@ -375,7 +444,11 @@ mod tests {
                 direction = Vec3::new(0.0, 0.0, 1.0);
             }
             let ray = Ray::new(origin, direction);
-            let sheared = ShearedRay::new(&ray);
+            let sheared = if case % 2 == 0 {
+                ShearedRay::new(&ray)
+            } else {
+                ShearedRay::with_reach(&ray, 8.0)
+            };
             let t_max = if case % 5 == 0 { 0.9 } else { f32::INFINITY };
             let four = sheared.intersect4([&tris[0], &tris[1], &tris[2], &tris[3]], 0.0, t_max);
             for (i, tri) in tris.iter().enumerate() {

@@ -206,23 +206,9 @@ fn every_hit(tree: &KdTree, ray: &Ray) -> Vec<sahkd::Hit> {
 
 /// Every triangle the ray hits in its range, by testing them all, sorted by triangle.
 fn brute_every_hit(tris: &[sahkd::Triangle], ray: &Ray) -> Vec<sahkd::Hit> {
-    if !ray.is_valid() {
-        return Vec::new();
-    }
-    let sheared = sahkd::trace::ShearedRay::new(ray);
-    tris.iter()
-        .enumerate()
-        .filter_map(|(i, t)| {
-            sheared
-                .intersect(t, ray.t_min, ray.t_max)
-                .map(|h| sahkd::Hit {
-                    t: h.t,
-                    prim: i as u32,
-                    u: h.u,
-                    v: h.v,
-                })
-        })
-        .collect()
+    let mut hits = Vec::new();
+    brute::for_each_hit(tris, ray, |h| hits.push(h));
+    hits
 }
 
 /// Every builder configuration the project offers.
