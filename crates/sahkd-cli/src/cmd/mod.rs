@@ -3,6 +3,7 @@
 
 pub mod bench;
 pub mod build;
+mod common;
 pub mod info;
 pub mod query;
 pub mod render;

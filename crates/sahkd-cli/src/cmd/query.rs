@@ -2,16 +2,16 @@
 //! of points from a `.npy` file against a mesh, written to `.npz`. Same input, output and
 //! error rules as `trace`.
 
+use super::common::{self, write_array, Prepared};
 use super::Context;
 use crate::format;
-use crate::input::{self, MeshArg};
+use crate::input::MeshArg;
 use crate::options::BuilderArgs;
 use crate::output;
 use crate::progress::Progress;
 use crate::rays;
 use anyhow::Result;
 use npyz::npz::NpzWriter;
-use npyz::WriterBuilder;
 use sahkd::{ClosestPoint, InsideTest, KdTree, Vec3};
 use serde::Serialize;
 use std::io::{BufWriter, Write};
@@ -77,34 +77,20 @@ type Answer = (Option<ClosestPoint>, Option<bool>);
 
 pub fn run(args: Args, context: &Context) -> Result<()> {
     let progress = Progress::new(context.quiet, args.json);
-    // Everything the user can get wrong is checked before the long steps.
-    let mesh_file = match input::Source::resolve(&args.mesh.mesh) {
-        input::Source::File(path) => Some(path),
-        input::Source::Scene(_) => None,
-    };
-    let inputs: Vec<&Path> = [Some(args.points.as_path()), mesh_file.as_deref()]
-        .into_iter()
-        .flatten()
-        .collect();
-    output::check(&args.output, &inputs)?;
-    let builder = args.builder.builder()?;
-    let spinner = progress.spinner(format!("reading {}", args.points.display()));
-    let points = rays::read_points(&args.points);
-    spinner.finish_and_clear();
-    let points = points?;
-    let loaded = builder.install(|| input::load(&args.mesh, &progress))?;
-
-    let spinner = progress.spinner(format!(
-        "building {} triangles",
-        format::count(loaded.mesh.triangles.len() as u64)
-    ));
-    let built = builder.build(&loaded.mesh);
-    spinner.finish_and_clear();
-    let built = built?;
-
-    let start = Instant::now();
-    built.tree.prepare_trace();
-    let layout_ms = start.elapsed().as_secs_f64() * 1e3;
+    let Prepared {
+        builder,
+        data: points,
+        loaded,
+        built,
+        layout_ms,
+    } = common::prepare(
+        &args.mesh,
+        &args.builder,
+        &args.points,
+        &args.output,
+        &progress,
+        rays::read_points,
+    )?;
     let start = Instant::now();
     let test = args.signed.then_some(args.inside_test);
     let answers = builder.install(|| query(&built.tree, &points, test, &progress));
@@ -235,28 +221,4 @@ fn write_answers(path: &Path, points: &[Vec3], answers: &[Answer], signed: bool)
         let mut file = npz.zip_writer().finish()?;
         file.flush()
     })
-}
-
-/// One array of the given shape, stored uncompressed as `np.savez` does.
-fn write_array<T, W>(
-    npz: &mut NpzWriter<W>,
-    name: &str,
-    shape: &[u64],
-    items: impl Iterator<Item = T>,
-) -> std::io::Result<()>
-where
-    T: npyz::AutoSerialize,
-    W: std::io::Write + std::io::Seek,
-{
-    let bytes = shape.iter().product::<u64>() * std::mem::size_of::<T>() as u64;
-    let options = npyz::zip::write::FileOptions::default()
-        .compression_method(npyz::zip::CompressionMethod::Stored)
-        .large_file(bytes >= u32::MAX as u64);
-    let mut writer = npz
-        .array::<T>(name, options)?
-        .default_dtype()
-        .shape(shape)
-        .begin_nd()?;
-    writer.extend(items)?;
-    writer.finish()
 }

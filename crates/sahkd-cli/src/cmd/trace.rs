@@ -1,15 +1,15 @@
 //! `sahkd trace`: trace rays from a `.npy` file against a mesh and write the hits to `.npz`.
 
+use super::common::{self, write_array, Prepared};
 use super::Context;
 use crate::format;
-use crate::input::{self, MeshArg};
+use crate::input::MeshArg;
 use crate::options::BuilderArgs;
 use crate::output;
 use crate::progress::Progress;
 use crate::rays;
 use anyhow::Result;
 use npyz::npz::NpzWriter;
-use npyz::WriterBuilder;
 use sahkd::{Hit, KdTree, Ray};
 use serde::Serialize;
 use std::io::{BufWriter, Write};
@@ -77,34 +77,20 @@ impl Hits {
 
 pub fn run(args: Args, context: &Context) -> Result<()> {
     let progress = Progress::new(context.quiet, args.json);
-    // Everything the user can get wrong is checked before the long steps.
-    let mesh_file = match input::Source::resolve(&args.mesh.mesh) {
-        input::Source::File(path) => Some(path),
-        input::Source::Scene(_) => None,
-    };
-    let inputs: Vec<&Path> = [Some(args.rays.as_path()), mesh_file.as_deref()]
-        .into_iter()
-        .flatten()
-        .collect();
-    output::check(&args.output, &inputs)?;
-    let builder = args.builder.builder()?;
-    let spinner = progress.spinner(format!("reading {}", args.rays.display()));
-    let rays = rays::read(&args.rays);
-    spinner.finish_and_clear();
-    let rays = rays?;
-    let loaded = builder.install(|| input::load(&args.mesh, &progress))?;
-
-    let spinner = progress.spinner(format!(
-        "building {} triangles",
-        format::count(loaded.mesh.triangles.len() as u64)
-    ));
-    let built = builder.build(&loaded.mesh);
-    spinner.finish_and_clear();
-    let built = built?;
-
-    let start = Instant::now();
-    built.tree.prepare_trace();
-    let layout_ms = start.elapsed().as_secs_f64() * 1e3;
+    let Prepared {
+        builder,
+        data: rays,
+        loaded,
+        built,
+        layout_ms,
+    } = common::prepare(
+        &args.mesh,
+        &args.builder,
+        &args.rays,
+        &args.output,
+        &progress,
+        rays::read,
+    )?;
     let start = Instant::now();
     let hits = builder.install(|| trace(&built.tree, &rays, args.any_hit, &progress));
     let trace_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -187,39 +173,15 @@ fn write_hits(path: &Path, hits: &Hits) -> Result<()> {
                 let prim = h.iter().map(|h| h.map_or(-1, |h| i64::from(h.prim)));
                 let u = h.iter().map(|h| h.map_or(0.0, |h| h.u));
                 let v = h.iter().map(|h| h.map_or(0.0, |h| h.v));
-                write_array(&mut npz, "t", h.len(), t)?;
-                write_array(&mut npz, "prim", h.len(), prim)?;
-                write_array(&mut npz, "u", h.len(), u)?;
-                write_array(&mut npz, "v", h.len(), v)?;
+                write_array(&mut npz, "t", &[h.len() as u64], t)?;
+                write_array(&mut npz, "prim", &[h.len() as u64], prim)?;
+                write_array(&mut npz, "u", &[h.len() as u64], u)?;
+                write_array(&mut npz, "v", &[h.len() as u64], v)?;
             }
-            Hits::Any(h) => write_array(&mut npz, "hit", h.len(), h.iter().copied())?,
+            Hits::Any(h) => write_array(&mut npz, "hit", &[h.len() as u64], h.iter().copied())?,
         }
         // Dropping the writers would finish the archive but swallow any error doing so.
         let mut file = npz.zip_writer().finish()?;
         file.flush()
     })
-}
-
-/// One 1-D array of `len` items, stored uncompressed as `np.savez` does.
-fn write_array<T, W>(
-    npz: &mut NpzWriter<W>,
-    name: &str,
-    len: usize,
-    items: impl Iterator<Item = T>,
-) -> std::io::Result<()>
-where
-    T: npyz::AutoSerialize,
-    W: std::io::Write + std::io::Seek,
-{
-    let large = (len as u64) * (std::mem::size_of::<T>() as u64) >= u32::MAX as u64;
-    let options = npyz::zip::write::FileOptions::default()
-        .compression_method(npyz::zip::CompressionMethod::Stored)
-        .large_file(large);
-    let mut writer = npz
-        .array::<T>(name, options)?
-        .default_dtype()
-        .shape(&[len as u64])
-        .begin_nd()?;
-    writer.extend(items)?;
-    writer.finish()
 }

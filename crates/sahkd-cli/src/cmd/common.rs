@@ -1,0 +1,94 @@
+//! What `trace` and `query` share: the steps before their own work ([`prepare`]), in one
+//! order so that everything a user can get wrong is refused before the long steps (the output
+//! checked against the inputs, the options, the array file read, then the mesh loaded, its
+//! tree built and its trace layout made, timed apart), and the `.npz` arrays they write.
+
+use crate::format;
+use crate::input::{self, Loaded, MeshArg};
+use crate::options::{Builder, BuilderArgs};
+use crate::output;
+use crate::progress::Progress;
+use anyhow::Result;
+use npyz::npz::NpzWriter;
+use npyz::WriterBuilder;
+use sahkd::Build;
+use std::path::Path;
+use std::time::Instant;
+
+pub struct Prepared<T> {
+    pub builder: Builder,
+    /// What `read` made of the array file.
+    pub data: T,
+    pub loaded: Loaded,
+    pub built: Build,
+    /// Making the tree's trace layout (not part of the command's own timing).
+    pub layout_ms: f64,
+}
+
+pub fn prepare<T>(
+    mesh: &MeshArg,
+    builder: &BuilderArgs,
+    data: &Path,
+    output: &Path,
+    progress: &Progress,
+    read: impl FnOnce(&Path) -> Result<T>,
+) -> Result<Prepared<T>> {
+    let mesh_file = match input::Source::resolve(&mesh.mesh) {
+        input::Source::File(path) => Some(path),
+        input::Source::Scene(_) => None,
+    };
+    let inputs: Vec<&Path> = [Some(data), mesh_file.as_deref()]
+        .into_iter()
+        .flatten()
+        .collect();
+    output::check(output, &inputs)?;
+    let builder = builder.builder()?;
+    let spinner = progress.spinner(format!("reading {}", data.display()));
+    let data = read(data);
+    spinner.finish_and_clear();
+    let data = data?;
+    let loaded = builder.install(|| input::load(mesh, progress))?;
+
+    let spinner = progress.spinner(format!(
+        "building {} triangles",
+        format::count(loaded.mesh.triangles.len() as u64)
+    ));
+    let built = builder.build(&loaded.mesh);
+    spinner.finish_and_clear();
+    let built = built?;
+
+    let start = Instant::now();
+    built.tree.prepare_trace();
+    let layout_ms = start.elapsed().as_secs_f64() * 1e3;
+    Ok(Prepared {
+        builder,
+        data,
+        loaded,
+        built,
+        layout_ms,
+    })
+}
+
+/// One array of the given shape, stored uncompressed as `np.savez` does.
+pub fn write_array<T, W>(
+    npz: &mut NpzWriter<W>,
+    name: &str,
+    shape: &[u64],
+    items: impl Iterator<Item = T>,
+) -> std::io::Result<()>
+where
+    T: npyz::AutoSerialize,
+    W: std::io::Write + std::io::Seek,
+{
+    let bytes = shape.iter().product::<u64>() * std::mem::size_of::<T>() as u64;
+    let options = npyz::zip::write::FileOptions::default()
+        .compression_method(npyz::zip::CompressionMethod::Stored)
+        .large_file(bytes >= u32::MAX as u64);
+    let mut writer = npz
+        .array::<T>(name, options)?
+        .default_dtype()
+        .shape(shape)
+        .begin_nd()?;
+    writer.extend(items)?;
+    writer.finish()
+}
