@@ -4,6 +4,7 @@
 //! builder takes the same [`Primitives`] and returns the same [`BuiltTree`]; [`build`] picks
 //! the builder, runs it on a thread pool of the requested size, and times it.
 
+mod choice;
 mod event;
 mod hybrid;
 mod level;

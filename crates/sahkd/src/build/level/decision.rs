@@ -4,6 +4,7 @@
 use super::candidates::{Candidate, Candidates};
 use super::entries::ListEntry;
 use super::{Context, Level};
+use crate::build::choice::Ranked;
 use rayon::prelude::*;
 
 /// The split chosen for a node.
@@ -19,11 +20,15 @@ pub(super) struct Split {
 /// Candidates of one node on one axis above which the min is itself parallel.
 const PARALLEL_MIN: usize = 1 << 15;
 
-/// The order of candidates: cheaper first, then the smaller position, then the lower axis.
+/// Whether candidate `a` (on its axis) is chosen over `b`: the builders' one order.
 #[inline]
 fn better(a: (&Candidate, usize), b: (&Candidate, usize)) -> bool {
-    let (x, y) = (a.0, b.0);
-    x.cost < y.cost || (x.cost == y.cost && (x.pos < y.pos || (x.pos == y.pos && a.1 < b.1)))
+    let rank = |(c, axis): (&Candidate, usize)| Ranked {
+        cost: c.cost,
+        pos: c.pos,
+        axis,
+    };
+    rank(a).precedes(rank(b))
 }
 
 fn min_of<'a>(

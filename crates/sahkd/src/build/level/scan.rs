@@ -20,6 +20,7 @@ use super::candidates::{self, Candidate, Candidates, Counts};
 use super::entries::{Event, END, PLANAR, START};
 use super::segments::CHUNK;
 use super::{ms_since, Level};
+use crate::build::choice::Ranked;
 use crate::build::LevelReport;
 use crate::cost::{CostModel, SplitPricer};
 use crate::geometry::Aabb;
@@ -98,11 +99,16 @@ struct Found {
 }
 
 impl Found {
-    /// The candidate kept: the cheaper, then the smaller position (one axis here).
+    /// The candidate kept, by the builders' one order (all on one axis here).
     fn offer(&mut self, c: Candidate) {
         self.priced += 1;
+        let rank = |c: &Candidate| Ranked {
+            cost: c.cost,
+            pos: c.pos,
+            axis: 0,
+        };
         match &self.best {
-            Some(b) if !(c.cost < b.cost || (c.cost == b.cost && c.pos < b.pos)) => {}
+            Some(b) if !rank(&c).precedes(rank(b)) => {}
             _ => self.best = Some(c),
         }
     }

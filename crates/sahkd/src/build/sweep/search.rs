@@ -6,6 +6,7 @@
 //! at or before `p`. The planars at `p` are `P`.
 
 use super::events::{kind, plane_bits, pos_bits, Event, END, PLANAR};
+use crate::build::choice::Ranked;
 use crate::build::event::unordered;
 use crate::build::Axes;
 use crate::cost::CostModel;
@@ -25,16 +26,20 @@ pub(super) struct Split {
 }
 
 impl Split {
-    /// Least cost first, then the smaller position, then the lower axis.
+    /// Whether this split is chosen over the best so far, by the builders' one order.
     #[inline]
     fn beats(&self, other: &Option<Split>) -> bool {
         match other {
             None => self.cost.is_finite(),
-            Some(o) => {
-                self.cost < o.cost
-                    || (self.cost == o.cost
-                        && (self.pos < o.pos || (self.pos == o.pos && self.axis < o.axis)))
-            }
+            Some(o) => self.ranked().precedes(o.ranked()),
+        }
+    }
+
+    fn ranked(&self) -> Ranked {
+        Ranked {
+            cost: self.cost,
+            pos: self.pos,
+            axis: self.axis,
         }
     }
 }
