@@ -36,5 +36,5 @@ pub use cost::CostModel;
 pub use geometry::{Aabb, Triangle, Vec3};
 pub use mesh::{Mesh, MeshError};
 pub use query::{ClosestPoint, InsideTest};
-pub use trace::{Hit, Ray, TraceStats};
+pub use trace::{Hit, Hit64, Ray, Ray64, TraceStats};
 pub use tree::{KdTree, Node, TreeStats};

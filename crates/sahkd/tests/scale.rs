@@ -6,8 +6,10 @@ mod common;
 
 use common::*;
 use rand::Rng;
-use sahkd::trace::brute;
-use sahkd::{build_triangles, Aabb, BuildOptions, CostModel, Hit, KdTree, Ray, Triangle, Vec3};
+use sahkd::trace::{brute, precise};
+use sahkd::{
+    build_triangles, Aabb, BuildOptions, CostModel, Hit, KdTree, Ray, Ray64, Triangle, Vec3,
+};
 
 /// One triangle's hit in float64: distance and the smallest barycentric (how far inside).
 #[derive(Clone, Copy, Debug)]
@@ -71,7 +73,7 @@ fn hits64(tris: &[Triangle], ray: &Ray) -> Vec<Hit64> {
 /// The tree's closest hit must be the float64 answer: a hit exactly when float64 finds a
 /// clear one (inside by more than 1e-6 in barycentrics), on a triangle float64 hits or nearly
 /// hits, at a distance within `tol` (relative) of float64's, and no clear float64 hit nearer.
-fn check64(tris: &[Triangle], ray: &Ray, got: Option<Hit>, tol: f64) -> Result<(), String> {
+fn check64(tris: &[Triangle], ray: &Ray, got: Option<(f64, u32)>, tol: f64) -> Result<(), String> {
     let all = hits64(tris, ray);
     let clear = all
         .iter()
@@ -83,8 +85,8 @@ fn check64(tris: &[Triangle], ray: &Ray, got: Option<Hit>, tol: f64) -> Result<(
             Some(h) => Err(format!("miss, float64 hits {h:?}")),
         },
         Some(g) => {
-            let t = g.t as f64;
-            let Some(same) = all.iter().find(|h| h.prim == g.prim) else {
+            let (t, prim) = g;
+            let Some(same) = all.iter().find(|h| h.prim == prim) else {
                 return Err(format!("{g:?} on a triangle float64 does not hit: {all:?}"));
             };
             let close = |a: f64, b: f64| (a - b).abs() <= tol * a.abs().max(b.abs());
@@ -157,8 +159,24 @@ fn check_scene(what: &str, tris: &[Triangle], rays: &[Ray], tol: f64) -> usize {
         assert_eq!(got, batch[i], "{what}: ray {i}: batch and single disagree");
         assert_eq!(got, brute::intersect(tris, ray), "{what}: ray {i}: brute");
         assert_eq!(tree.occluded(ray), got.is_some(), "{what}: ray {i}");
-        if let Err(e) = check64(tris, ray, got, tol) {
+        if let Err(e) = check64(tris, ray, got.map(|h| (h.t as f64, h.prim)), tol) {
             errors.push(format!("ray {i} {ray:?}: {e}"));
+        }
+        // The f64 walk: the f64 brute force's answer, and float64's to 1e-9.
+        let ray64 = Ray64::from(ray);
+        let got64 = tree.intersect_f64(&ray64);
+        assert_eq!(
+            got64,
+            precise::brute_intersect(tris, &ray64),
+            "{what}: ray {i}: f64 brute"
+        );
+        assert_eq!(
+            tree.occluded_f64(&ray64),
+            got64.is_some(),
+            "{what}: ray {i}"
+        );
+        if let Err(e) = check64(tris, ray, got64.map(|h| (h.t, h.prim)), 1e-9) {
+            errors.push(format!("ray {i} {ray:?} in f64: {e}"));
         }
     }
     assert!(
@@ -374,5 +392,76 @@ fn needle_thin_triangles_get_accurate_distances() {
     assert!(
         worst_f32 > 1e-6,
         "the float32 distance is no worse: {worst_f32:e}"
+    );
+}
+
+/// Tiny triangles 1e5 from the origin above a ground plane 3e5 across, seen from 1e5 away:
+/// float32 cannot hold these rays' shear (README, Reliability), so the f64 queries
+/// (`intersect_f64`) must give float64's answer on every ray, and the brute force's.
+#[test]
+fn tiny_triangles_far_away_are_exact_in_f64() {
+    let mut rng = rng(142);
+    let g = 3e5f32;
+    let mut tris: Vec<Triangle> = vec![
+        [
+            Vec3::new(-g, -g, 0.0),
+            Vec3::new(g, -g, 0.0),
+            Vec3::new(g, g, 0.0),
+        ],
+        [
+            Vec3::new(-g, -g, 0.0),
+            Vec3::new(g, g, 0.0),
+            Vec3::new(-g, g, 0.0),
+        ],
+    ];
+    for _ in 0..300 {
+        let c = Vec3::new(
+            1e5 + rng.random_range(-2.0..2.0),
+            1e5 + rng.random_range(-2.0..2.0),
+            rng.random_range(0.5..3.0),
+        );
+        tris.push([0; 3].map(|_| c + Vec3([0; 3].map(|_| rng.random_range(-0.03..0.03)))));
+    }
+    let tree = tree_of(&tris);
+    let (mut tiny, mut wrong32) = (0, 0);
+    let n = 3000;
+    for i in 0..n {
+        let origin = Vec3::new(
+            rng.random_range(-10.0..10.0),
+            rng.random_range(-10.0..10.0),
+            rng.random_range(100.0..1000.0),
+        );
+        // Aimed in f64 at a random point of a random tiny triangle.
+        let t = tris[rng.random_range(2..tris.len())];
+        let (a, b) = (rng.random::<f64>(), rng.random::<f64>());
+        let (a, b) = if a + b > 1.0 {
+            (1.0 - a, 1.0 - b)
+        } else {
+            (a, b)
+        };
+        let target: V = std::array::from_fn(|k| {
+            v64(t[0])[k] * (1.0 - a - b) + v64(t[1])[k] * a + v64(t[2])[k] * b
+        });
+        let d = sub(target, v64(origin));
+        let l = dot(d, d).sqrt();
+        let ray = Ray::new(origin, Vec3(d.map(|x| (x / l) as f32)));
+        let ray64 = Ray64::from(&ray);
+        let got = tree.intersect_f64(&ray64);
+        assert_eq!(
+            got,
+            precise::brute_intersect(&tris, &ray64),
+            "ray {i}: f64 brute"
+        );
+        if let Err(e) = check64(&tris, &ray, got.map(|h| (h.t, h.prim)), 1e-9) {
+            panic!("ray {i} {ray:?} in f64: {e}");
+        }
+        tiny += got.is_some_and(|h| h.prim >= 2) as usize;
+        let got32 = tree.intersect(&ray).map(|h| (h.t as f64, h.prim));
+        wrong32 += check64(&tris, &ray, got32, 1e-5).is_err() as usize;
+    }
+    eprintln!("float32 queries: {wrong32} of {n} rays differ from float64 (f64 queries: none)");
+    assert!(
+        tiny > n / 4,
+        "{tiny} of {n} rays hit a tiny triangle, a weak test"
     );
 }

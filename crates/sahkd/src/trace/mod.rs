@@ -14,11 +14,13 @@
 pub mod brute;
 mod layout;
 mod packet;
+pub mod precise;
 mod triangle;
 
 pub(crate) use layout::TraceLayout;
 use layout::TriangleRecord;
 
+pub use precise::{Hit64, Ray64};
 pub use triangle::{ShearedRay, TriangleHit};
 
 use crate::cost::MAX_DEPTH_CAP;
