@@ -3,8 +3,8 @@
 
 use npyz::npz::NpzArchive;
 use npyz::WriterBuilder;
-use sahkd::trace::brute;
-use sahkd::{scenes, BuildOptions, CostModel, Mesh, Ray, Triangle, Vec3};
+use sahkd::trace::{brute, precise};
+use sahkd::{scenes, BuildOptions, CostModel, Mesh, Ray, Ray64, Triangle, Vec3};
 use serde_json::Value;
 use std::fs::File;
 use std::io::BufWriter;
@@ -552,6 +552,59 @@ fn any_hit_trace_matches_brute_force() {
     }
     assert!(count > 0 && count < rows.len());
     assert_eq!(report["hits"], count);
+}
+
+/// `--precision f64`: float64 `t`, `u`, `v`, each the f64 brute force's answer bit for bit,
+/// and the same any-hit answers.
+#[test]
+fn f64_trace_matches_the_f64_brute_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let rays_path = dir.path().join("rays.npy");
+    let hits_path = dir.path().join("hits.npz");
+    let any_path = dir.path().join("any.npz");
+    let rows = ray_rows(1500, true);
+    write_npy(&rays_path, &rows, 8, |x| x);
+    let run = |out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "trace",
+            SCENE,
+            "--rays",
+            path_str(&rays_path),
+            "-o",
+            path_str(out),
+            "--precision",
+            "f64",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        json(&args)
+    };
+    let report = run(&hits_path, &[]);
+    assert_eq!(report["precision"], "f64");
+    run(&any_path, &["--any-hit"]);
+    let triangles = scene(SCENE).corner_triangles();
+    let n = rows.len();
+    let t: Vec<f64> = read_npz(&hits_path, "t", "<f8", n);
+    let prim: Vec<i64> = read_npz(&hits_path, "prim", "<i8", n);
+    let u: Vec<f64> = read_npz(&hits_path, "u", "<f8", n);
+    let v: Vec<f64> = read_npz(&hits_path, "v", "<f8", n);
+    let hit: Vec<bool> = read_npz(&any_path, "hit", "|b1", n);
+    let mut hits = 0;
+    for (i, row) in rows.iter().enumerate() {
+        let ray = Ray64::from(&to_ray(row));
+        let want = match precise::brute_intersect(&triangles, &ray) {
+            Some(h) => {
+                hits += 1;
+                (h.t.to_bits(), h.prim as i64, h.u.to_bits(), h.v.to_bits())
+            }
+            None => (f64::INFINITY.to_bits(), -1, 0f64.to_bits(), 0f64.to_bits()),
+        };
+        let got = (t[i].to_bits(), prim[i], u[i].to_bits(), v[i].to_bits());
+        assert_eq!(got, want, "ray {i} {row:?}");
+        assert_eq!(hit[i], want.1 >= 0, "any hit, ray {i} {row:?}");
+    }
+    assert!(hits > n / 10 && hits < n, "{hits} hits of {n}: a weak test");
+    assert_eq!(report["hits"], hits);
 }
 
 #[test]

@@ -10,7 +10,7 @@ use crate::progress::Progress;
 use crate::rays;
 use anyhow::Result;
 use npyz::npz::NpzWriter;
-use sahkd::{Hit, KdTree, Ray};
+use sahkd::{Hit, Hit64, KdTree, Ray, Ray64};
 use serde::Serialize;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -35,6 +35,12 @@ pub struct Args {
     #[arg(long)]
     pub any_hit: bool,
 
+    /// Arithmetic of the walk and the triangle tests: f32 (fast), or f64 for scenes beyond
+    /// float32 (tiny triangles far from the origin); with f64, `t`, `u` and `v` are written
+    /// as float64 (the rays are read as float32 either way)
+    #[arg(long, value_enum, default_value_t = Precision::F32)]
+    pub precision: Precision,
+
     /// Print one JSON object on stdout instead of the summary on stderr
     #[arg(long)]
     pub json: bool,
@@ -44,12 +50,20 @@ pub struct Args {
     pub builder: BuilderArgs,
 }
 
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Precision {
+    F32,
+    F64,
+}
+
 #[derive(Serialize)]
 struct Report {
     source: String,
     triangles: usize,
     rays: usize,
     any_hit: bool,
+    precision: Precision,
     threads: usize,
     load_ms: f64,
     build_ms: f64,
@@ -63,6 +77,7 @@ struct Report {
 /// The answers of a batch of rays.
 enum Hits {
     Closest(Vec<Option<Hit>>),
+    Closest64(Vec<Option<Hit64>>),
     Any(Vec<bool>),
 }
 
@@ -70,6 +85,7 @@ impl Hits {
     fn count(&self) -> usize {
         match self {
             Hits::Closest(h) => h.iter().filter(|h| h.is_some()).count(),
+            Hits::Closest64(h) => h.iter().filter(|h| h.is_some()).count(),
             Hits::Any(h) => h.iter().filter(|&&h| h).count(),
         }
     }
@@ -92,7 +108,8 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         rays::read,
     )?;
     let start = Instant::now();
-    let hits = builder.install(|| trace(&built.tree, &rays, args.any_hit, &progress));
+    let hits =
+        builder.install(|| trace(&built.tree, &rays, args.any_hit, args.precision, &progress));
     let trace_ms = start.elapsed().as_secs_f64() * 1e3;
 
     let spinner = progress.spinner(format!("writing {}", args.output.display()));
@@ -105,6 +122,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         triangles: loaded.mesh.triangles.len(),
         rays: rays.len(),
         any_hit: args.any_hit,
+        precision: args.precision,
         threads: builder.threads(),
         load_ms: loaded.load_ms,
         build_ms: built.report.build_ms,
@@ -138,27 +156,46 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
 }
 
 /// Traces in one batch, or in slices when a progress bar is shown so that it can move.
-fn trace(tree: &KdTree, rays: &[Ray], any_hit: bool, progress: &Progress) -> Hits {
+fn trace(
+    tree: &KdTree,
+    rays: &[Ray],
+    any_hit: bool,
+    precision: Precision,
+    progress: &Progress,
+) -> Hits {
     let slice = if progress.enabled() {
         (rays.len() / 100).max(1 << 14)
     } else {
         rays.len().max(1)
     };
     let bar = progress.bar(rays.len() as u64, "tracing");
-    let hits = if any_hit {
-        let mut out = Vec::with_capacity(rays.len());
+    let sliced = |f: &mut dyn FnMut(&[Ray])| {
         for chunk in rays.chunks(slice) {
-            out.extend(tree.occluded_batch(chunk));
+            f(chunk);
             bar.inc(chunk.len() as u64);
         }
-        Hits::Any(out)
-    } else {
-        let mut out = Vec::with_capacity(rays.len());
-        for chunk in rays.chunks(slice) {
-            out.extend(tree.intersect_batch(chunk));
-            bar.inc(chunk.len() as u64);
+    };
+    let wide = |chunk: &[Ray]| chunk.iter().map(Ray64::from).collect::<Vec<_>>();
+    let mut any = Vec::new();
+    let mut closest = Vec::new();
+    let mut closest64 = Vec::new();
+    let hits = match (any_hit, precision) {
+        (true, Precision::F32) => {
+            sliced(&mut |c| any.extend(tree.occluded_batch(c)));
+            Hits::Any(any)
         }
-        Hits::Closest(out)
+        (true, Precision::F64) => {
+            sliced(&mut |c| any.extend(tree.occluded_batch_f64(&wide(c))));
+            Hits::Any(any)
+        }
+        (false, Precision::F32) => {
+            sliced(&mut |c| closest.extend(tree.intersect_batch(c)));
+            Hits::Closest(closest)
+        }
+        (false, Precision::F64) => {
+            sliced(&mut |c| closest64.extend(tree.intersect_batch_f64(&wide(c))));
+            Hits::Closest64(closest64)
+        }
     };
     bar.finish_and_clear();
     hits
@@ -170,6 +207,16 @@ fn write_hits(path: &Path, hits: &Hits) -> Result<()> {
         match hits {
             Hits::Closest(h) => {
                 let t = h.iter().map(|h| h.map_or(f32::INFINITY, |h| h.t));
+                let prim = h.iter().map(|h| h.map_or(-1, |h| i64::from(h.prim)));
+                let u = h.iter().map(|h| h.map_or(0.0, |h| h.u));
+                let v = h.iter().map(|h| h.map_or(0.0, |h| h.v));
+                write_array(&mut npz, "t", &[h.len() as u64], t)?;
+                write_array(&mut npz, "prim", &[h.len() as u64], prim)?;
+                write_array(&mut npz, "u", &[h.len() as u64], u)?;
+                write_array(&mut npz, "v", &[h.len() as u64], v)?;
+            }
+            Hits::Closest64(h) => {
+                let t = h.iter().map(|h| h.map_or(f64::INFINITY, |h| h.t));
                 let prim = h.iter().map(|h| h.map_or(-1, |h| i64::from(h.prim)));
                 let u = h.iter().map(|h| h.map_or(0.0, |h| h.u));
                 let v = h.iter().map(|h| h.map_or(0.0, |h| h.v));
