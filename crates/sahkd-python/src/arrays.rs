@@ -11,7 +11,7 @@ use numpy::prelude::*;
 use numpy::{Element, PyArray1, PyArray2, PyUntypedArray};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use sahkd::{Ray, Triangle, Vec3};
+use sahkd::{Ray, Ray64, Triangle, Vec3};
 
 /// Any numpy array (array-likes go through `numpy.asarray`), in native byte order and aligned.
 fn ndarray<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Bound<'py, PyUntypedArray>> {
@@ -127,15 +127,27 @@ fn shape_err(arr: &Bound<'_, PyUntypedArray>, name: &str, what: &str) -> PyErr {
 /// Calls `f(row, point)` for every row in single precision, rejecting values that are not
 /// finite (or overflow float32) with the row named.
 fn visit_points(pts: &Points<'_>, name: &str, mut f: impl FnMut(usize, [f32; 3])) -> PyResult<()> {
-    let mut visit = |i: usize, p: [f64; 3]| -> PyResult<()> {
+    visit_points_f64(pts, name, "float32", |i, p| {
         let q = p.map(|c| c as f32);
-        if !q.iter().all(|c| c.is_finite()) {
+        q.iter().all(|c| c.is_finite()).then(|| f(i, q)).is_some()
+    })
+}
+
+/// Calls `f(row, point)` for every row in double precision; a row that is not finite, or for
+/// which `f` returns false (not finite in `precision`), is an error naming the row.
+fn visit_points_f64(
+    pts: &Points<'_>,
+    name: &str,
+    precision: &str,
+    mut f: impl FnMut(usize, [f64; 3]) -> bool,
+) -> PyResult<()> {
+    let mut visit = |i: usize, p: [f64; 3]| -> PyResult<()> {
+        if !(p.iter().all(|c| c.is_finite()) && f(i, p)) {
             return Err(PyValueError::new_err(format!(
-                "{name}[{i}] = ({}, {}, {}) is not finite in float32",
+                "{name}[{i}] = ({}, {}, {}) is not finite in {precision}",
                 p[0], p[1], p[2]
             )));
         }
-        f(i, q);
         Ok(())
     };
     match pts {
@@ -223,12 +235,12 @@ pub fn triangles(vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>) -> PyRes
 
 /// A ray parameter bound: one value for every ray, or one per ray.
 enum Bound1 {
-    All(f32),
-    PerRay(Vec<f32>),
+    All(f64),
+    PerRay(Vec<f64>),
 }
 
 impl Bound1 {
-    fn get(&self, i: usize) -> f32 {
+    fn get(&self, i: usize) -> f64 {
         match self {
             Bound1::All(v) => *v,
             Bound1::PerRay(v) => v[i],
@@ -237,7 +249,7 @@ impl Bound1 {
 }
 
 fn ray_bound(obj: &Bound<'_, PyAny>, name: &str, rays: usize, allow_inf: bool) -> PyResult<Bound1> {
-    let check = |i: Option<usize>, v: f64| -> PyResult<f32> {
+    let check = |i: Option<usize>, v: f64| -> PyResult<f64> {
         let ok = if allow_inf {
             !v.is_nan()
         } else {
@@ -248,7 +260,7 @@ fn ray_bound(obj: &Bound<'_, PyAny>, name: &str, rays: usize, allow_inf: bool) -
             let why = if allow_inf { "NaN" } else { "not finite" };
             return Err(PyValueError::new_err(format!("{name}{at} is {why}")));
         }
-        Ok(v as f32)
+        Ok(v)
     };
     if obj.cast::<PyUntypedArray>().is_err() {
         if let Ok(v) = obj.extract::<f64>() {
@@ -277,7 +289,7 @@ fn ray_bound(obj: &Bound<'_, PyAny>, name: &str, rays: usize, allow_inf: bool) -
                 .iter()
                 .enumerate()
                 .map(|(i, &v)| check(Some(i), v))
-                .collect::<PyResult<Vec<f32>>>()?;
+                .collect::<PyResult<Vec<f64>>>()?;
             Ok(Bound1::PerRay(vals))
         }
         _ => Err(PyValueError::new_err(format!(
@@ -285,6 +297,34 @@ fn ray_bound(obj: &Bound<'_, PyAny>, name: &str, rays: usize, allow_inf: bool) -
             shape_text(&shape)
         ))),
     }
+}
+
+/// [`rays`] in double precision, for the f64 queries: float64 input is kept as given.
+pub fn rays64(
+    origins: &Bound<'_, PyAny>,
+    directions: &Bound<'_, PyAny>,
+    t_min: &Bound<'_, PyAny>,
+    t_max: &Bound<'_, PyAny>,
+) -> PyResult<Vec<Ray64>> {
+    let (o, n) = points(origins, "origins", "(R, 3)")?;
+    let (d, m) = points(directions, "directions", "(R, 3)")?;
+    if n != m {
+        return Err(PyValueError::new_err(format!(
+            "origins and directions must have the same number of rays, got {n} and {m}"
+        )));
+    }
+    let lo = ray_bound(t_min, "t_min", n, false)?;
+    let hi = ray_bound(t_max, "t_max", n, true)?;
+    let mut rays = Vec::with_capacity(n);
+    visit_points_f64(&o, "origins", "float64", |i, p| {
+        rays.push(Ray64::new(p, [0.0; 3]).with_range(lo.get(i), hi.get(i)));
+        true
+    })?;
+    visit_points_f64(&d, "directions", "float64", |i, p| {
+        rays[i].direction = p;
+        true
+    })?;
+    Ok(rays)
 }
 
 /// Rays from `(R, 3)` origins and directions and scalar or `(R,)` bounds. Non-finite origins,
@@ -308,7 +348,9 @@ pub fn rays(
     // Straight into the rays, without a copy of either array on the way.
     let mut rays = Vec::with_capacity(n);
     visit_points(&o, "origins", |i, p| {
-        rays.push(Ray::new(Vec3(p), Vec3::splat(0.0)).with_range(lo.get(i), hi.get(i)))
+        rays.push(
+            Ray::new(Vec3(p), Vec3::splat(0.0)).with_range(lo.get(i) as f32, hi.get(i) as f32),
+        )
     })?;
     visit_points(&d, "directions", |i, p| rays[i].direction = Vec3(p))?;
     Ok(rays)

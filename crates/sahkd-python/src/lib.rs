@@ -189,6 +189,34 @@ fn ray_args(
     )
 }
 
+/// The `precision=` argument of the ray queries: "f32" (the default) or "f64".
+fn is_f64(precision: &str) -> PyResult<bool> {
+    match precision {
+        "f32" => Ok(false),
+        "f64" => Ok(true),
+        other => Err(PyValueError::new_err(format!(
+            "precision must be 'f32' or 'f64', got {other:?}"
+        ))),
+    }
+}
+
+fn ray_args64(
+    origins: &Bound<'_, PyAny>,
+    directions: &Bound<'_, PyAny>,
+    t_min: Option<&Bound<'_, PyAny>>,
+    t_max: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Vec<sahkd::Ray64>> {
+    let py = origins.py();
+    let zero = 0.0f64.into_pyobject(py)?.into_any();
+    let inf = f64::INFINITY.into_pyobject(py)?.into_any();
+    arrays::rays64(
+        origins,
+        directions,
+        t_min.unwrap_or(&zero),
+        t_max.unwrap_or(&inf),
+    )
+}
+
 #[pymethods]
 impl PyKdTree {
     #[new]
@@ -334,7 +362,10 @@ impl PyKdTree {
     /// Returns float32 t (inf on a miss), int64 prim (the face index, -1 on a miss), and
     /// float32 barycentrics u, v of corners 1 and 2 (0 on a miss). Ties in t go to the lower
     /// face index. A ray with a zero direction or t_min > t_max hits nothing.
-    #[pyo3(signature = (origins, directions, t_min=None, t_max=None), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf)")]
+    /// precision="f64" walks the same tree with the rays (float64 input kept as given), the
+    /// plane distances and the triangle tests in float64, for scenes beyond float32 (tiny
+    /// triangles far from the origin), and returns float64 t, u, v; about 3x slower.
+    #[pyo3(signature = (origins, directions, t_min=None, t_max=None, precision="f32"), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf, precision='f32')")]
     fn intersect<'py>(
         &self,
         py: Python<'py>,
@@ -342,7 +373,23 @@ impl PyKdTree {
         directions: &Bound<'py, PyAny>,
         t_min: Option<&Bound<'py, PyAny>>,
         t_max: Option<&Bound<'py, PyAny>>,
+        precision: &str,
     ) -> PyResult<Bound<'py, PyAny>> {
+        if is_f64(precision)? {
+            let rays = ray_args64(origins, directions, t_min, t_max)?;
+            let pool = self.pool()?;
+            let hits = py.detach(|| pool.install(|| self.tree.intersect_batch_f64(&rays)));
+            let t = hits.iter().map(|h| h.map_or(f64::INFINITY, |h| h.t));
+            let prim = hits.iter().map(|h| h.map_or(-1, |h| h.prim as i64));
+            let u = hits.iter().map(|h| h.map_or(0.0, |h| h.u));
+            let v = hits.iter().map(|h| h.map_or(0.0, |h| h.v));
+            return namedtuple(py, &HITS, "Hits")?.call1((
+                PyArray1::from_iter(py, t),
+                PyArray1::from_iter(py, prim),
+                PyArray1::from_iter(py, u),
+                PyArray1::from_iter(py, v),
+            ));
+        }
         let rays = ray_args(origins, directions, t_min, t_max)?;
         let pool = self.pool()?;
         let (t, prim, u, v) = py.detach(|| {
@@ -381,8 +428,8 @@ impl PyKdTree {
     }
 
     /// Whether each ray hits anything with t_min <= t <= t_max, as a bool array (each ray
-    /// stops at the first hit found).
-    #[pyo3(signature = (origins, directions, t_min=None, t_max=None), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf)")]
+    /// stops at the first hit found). precision as in intersect.
+    #[pyo3(signature = (origins, directions, t_min=None, t_max=None, precision="f32"), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf, precision='f32')")]
     fn occluded<'py>(
         &self,
         py: Python<'py>,
@@ -390,7 +437,14 @@ impl PyKdTree {
         directions: &Bound<'py, PyAny>,
         t_min: Option<&Bound<'py, PyAny>>,
         t_max: Option<&Bound<'py, PyAny>>,
+        precision: &str,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        if is_f64(precision)? {
+            let rays = ray_args64(origins, directions, t_min, t_max)?;
+            let pool = self.pool()?;
+            let hit = py.detach(|| pool.install(|| self.tree.occluded_batch_f64(&rays)));
+            return Ok(PyArray1::from_vec(py, hit));
+        }
         let rays = ray_args(origins, directions, t_min, t_max)?;
         let pool = self.pool()?;
         let hit = py.detach(|| pool.install(|| self.tree.occluded_batch(&rays)));

@@ -294,3 +294,46 @@ def _python_runs_beside(call):
 def test_the_interpreter_check_detects_a_call_that_holds_it():
     """The check above fails on a call that keeps the interpreter: a long sum in C."""
     assert not _python_runs_beside(lambda: sum(range(10_000_000)))
+
+
+def test_f64_precision_is_exact_where_float32_is_not():
+    """Tiny triangles 1e5 from the origin above a ground plane 3e5 across, seen from near the
+    origin: precision="f64" gives the float64 oracle's hit on every clear ray (float64 rays
+    kept as given), with float64 t, u, v; a wrong precision name is a ValueError."""
+    rng = np.random.default_rng(11)
+    g = 3e5
+    ground = np.array([[-g, -g, 0], [g, -g, 0], [g, g, 0], [-g, g, 0]], np.float64)
+    centres = np.column_stack(
+        [1e5 + rng.uniform(-2, 2, 200), 6e4 + rng.uniform(-2, 2, 200), rng.uniform(0.5, 3, 200)]
+    )
+    tiny = (centres[:, None, :] + rng.uniform(-0.03, 0.03, (200, 3, 3))).reshape(-1, 3)
+    vertices = np.vstack([ground, tiny]).astype(np.float32)
+    faces = np.vstack([[[0, 1, 2], [0, 2, 3]], 4 + np.arange(600).reshape(200, 3)]).astype(np.int64)
+    n = 1500
+    origins = np.column_stack([rng.uniform(-10, 10, n), rng.uniform(-10, 10, n), rng.uniform(5e4, 2e5, n)])
+    tri = vertices[faces[rng.integers(2, len(faces), n)]].astype(np.float64)
+    targets = np.einsum("ij,ijk->ik", rng.dirichlet([1, 1, 1], n), tri)
+    directions = targets - origins
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+
+    tree = sahkd.KdTree(vertices, faces)
+    hits = tree.intersect(origins, directions, precision="f64")
+    assert hits.t.dtype == np.float64 and hits.u.dtype == np.float64
+    occluded = tree.occluded(origins, directions, precision="f64")
+    expected, ambiguous = oracle(vertices, faces, origins, directions)
+    clear = np.flatnonzero(~ambiguous)
+    assert len(clear) > 0.8 * n
+    tiny_hits = 0
+    for i in clear:
+        rows = expected[i]
+        assert occluded[i] == bool(rows), f"ray {i}"
+        if not rows:
+            assert hits.prim[i] == -1, f"ray {i}"
+            continue
+        assert hits.prim[i] == rows[0][1], f"ray {i}: {hits.prim[i]} vs {rows[0]}"
+        assert abs(hits.t[i] - rows[0][0]) <= 1e-9 * rows[0][0], f"ray {i}"
+        assert abs(hits.u[i] - rows[0][2]) <= 1e-6 and abs(hits.v[i] - rows[0][3]) <= 1e-6
+        tiny_hits += rows[0][1] >= 2
+    assert tiny_hits > len(clear) // 4, "the rays should mostly hit the tiny triangles"
+    with pytest.raises(ValueError, match="precision"):
+        tree.intersect(origins, directions, precision="f16")
