@@ -7,8 +7,14 @@
 //! shared edge or vertex (counted once per triangle there, which can flip the parity) or
 //! through a hole in the mesh; so three rays in fixed, unrelated, off-axis directions vote,
 //! and the majority wins (the third is cast only when the first two disagree).
+//!
+//! Two shortcuts leave the answers of closed meshes as they were and save most of the walking:
+//! a point outside the mesh's bounding box is outside (no closed surface encloses it), and
+//! each voting ray has its direction's signs turned towards the nearer face of the box along
+//! every axis, so it crosses half the box or less instead of up to all of it. The directions
+//! stay off the axes and unrelated to each other; only their octant depends on the point.
 
-use crate::geometry::Vec3;
+use crate::geometry::{Aabb, Vec3};
 use crate::trace::Ray;
 use crate::tree::KdTree;
 
@@ -30,15 +36,30 @@ pub(crate) fn odd_crossings(tree: &KdTree, p: Vec3, d: Vec3, buf: &mut Vec<u32>)
     buf.len() % 2 == 1
 }
 
-/// The majority of the three rays' parities; false for a non-finite point.
+/// Voting direction `k` for a point at `p` in `bounds`: `DIRECTIONS[k]` with each component's
+/// sign pointing to the nearer face of the box along that axis.
+pub fn direction(k: usize, p: Vec3, bounds: &Aabb) -> Vec3 {
+    let mut d = DIRECTIONS[k];
+    for a in 0..3 {
+        let towards_hi = bounds.hi[a] - p[a] < p[a] - bounds.lo[a];
+        d[a] = if towards_hi { d[a].abs() } else { -d[a].abs() };
+    }
+    d
+}
+
+/// The majority of the three rays' parities; false for a non-finite point or one outside
+/// the mesh's bounding box.
 pub(crate) fn inside(tree: &KdTree, p: Vec3, buf: &mut Vec<u32>) -> bool {
-    if !p.is_finite() {
+    let b = &tree.bounds;
+    let within = (0..3).all(|a| b.lo[a] <= p[a] && p[a] <= b.hi[a]);
+    if !within {
+        // Also false for NaN coordinates, which fail both comparisons.
         return false;
     }
-    let a = odd_crossings(tree, p, DIRECTIONS[0], buf);
-    let b = odd_crossings(tree, p, DIRECTIONS[1], buf);
-    if a == b {
-        return a;
+    let vote = |k: usize, buf: &mut Vec<u32>| odd_crossings(tree, p, direction(k, p, b), buf);
+    let first = vote(0, buf);
+    if first == vote(1, buf) {
+        return first;
     }
-    odd_crossings(tree, p, DIRECTIONS[2], buf)
+    vote(2, buf)
 }
