@@ -233,11 +233,11 @@ pub(super) fn fill_extents(
     let fill = cands.filler();
     (0..nodes).into_par_iter().with_min_len(64).for_each(|k| {
         let b = &boxes[k];
-        for axis in 0..3 {
+        for (axis, starts) in starts.iter().enumerate() {
             if uses[k] & (1 << axis) == 0 {
                 continue;
             }
-            let s = starts[axis][k] as usize;
+            let s = starts[k] as usize;
             let n = len(axis, k);
             // Safety: this task owns node k's pairs; each slot is written once.
             unsafe {
