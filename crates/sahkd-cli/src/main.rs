@@ -9,6 +9,7 @@ mod options;
 mod output;
 mod progress;
 mod rays;
+mod resident;
 
 use clap::error::ErrorKind;
 use clap::Parser;

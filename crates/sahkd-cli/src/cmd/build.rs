@@ -8,6 +8,7 @@ use crate::options::{
     algorithm_name, axes_name, counting_name, switch_name, Builder, BuilderArgs, DeviceArg,
 };
 use crate::progress::Progress;
+use crate::resident::PeakResident;
 use anyhow::{bail, Result};
 use sahkd::build::LevelReport;
 use sahkd::Axes;
@@ -62,6 +63,10 @@ pub struct Report<'a> {
     bytes: usize,
     peak_working_bytes: usize,
     peak_working_bytes_per_triangle: f64,
+    /// The process's peak resident memory after the build (mesh, working arrays and tree);
+    /// `null` where the system does not report it.
+    #[serde(flatten)]
+    resident: PeakResident,
     /// `null` unless `--validate` was given.
     valid: Option<bool>,
     levels: &'a [LevelReport],
@@ -158,6 +163,7 @@ impl Built {
             peak_working_bytes: report.peak_working_bytes,
             peak_working_bytes_per_triangle: report.peak_working_bytes as f64
                 / self.loaded.mesh.triangles.len().max(1) as f64,
+            resident: PeakResident::now(self.loaded.mesh.triangles.len()),
             valid,
             levels: &report.levels,
         }
@@ -234,6 +240,14 @@ impl Built {
                         / self.loaded.mesh.triangles.len().max(1) as f64
                 ),
             );
+        let resident = PeakResident::now(self.loaded.mesh.triangles.len());
+        if let Some(bytes) = resident.peak_resident_bytes {
+            let per = resident.peak_resident_bytes_per_triangle.unwrap_or(0.0);
+            t.row(
+                "peak resident memory",
+                format!("{} ({per:.0} bytes per triangle)", format::bytes(bytes)),
+            );
+        }
         t
     }
 }

@@ -10,6 +10,7 @@ use crate::options::BuilderArgs;
 use crate::output;
 use crate::progress::Progress;
 use crate::rays;
+use crate::resident::PeakResident;
 use anyhow::Result;
 use npyz::npz::NpzWriter;
 use sahkd::{ClosestPoint, InsideTest, KdTree, Vec3};
@@ -70,6 +71,9 @@ struct Report {
     mpoints_per_s: f64,
     /// Points inside the mesh (with --signed).
     inside: Option<usize>,
+    /// The process's peak resident memory: mesh, build, tree, walk layout, points, answers.
+    #[serde(flatten)]
+    resident: PeakResident,
 }
 
 /// One point's answer: the closest point and, with --signed, whether it is inside.
@@ -123,6 +127,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         inside: args
             .signed
             .then(|| answers.iter().filter(|a| a.1 == Some(true)).count()),
+        resident: PeakResident::now(loaded.mesh.triangles.len()),
     };
     if args.json {
         format::print_json(&report)?;

@@ -8,6 +8,7 @@ use crate::options::BuilderArgs;
 use crate::output;
 use crate::progress::Progress;
 use crate::rays;
+use crate::resident::PeakResident;
 use anyhow::Result;
 use npyz::npz::NpzWriter;
 use sahkd::{Hit, Hit64, KdTree, Ray, Ray64};
@@ -72,6 +73,9 @@ struct Report {
     trace_ms: f64,
     mrays_per_s: f64,
     hits: usize,
+    /// The process's peak resident memory: mesh, build, tree, trace layout, rays and answers.
+    #[serde(flatten)]
+    resident: PeakResident,
 }
 
 /// The answers of a batch of rays.
@@ -134,6 +138,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
             0.0
         },
         hits: hits.count(),
+        resident: PeakResident::now(loaded.mesh.triangles.len()),
     };
     if args.json {
         format::print_json(&report)?;
