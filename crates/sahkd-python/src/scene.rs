@@ -93,10 +93,13 @@ fn transform_arg(obj: &Bound<'_, PyAny>) -> PyResult<Transform> {
     } else {
         Ok(Transform([row(0), row(1), row(2)]))
     };
-    let t = t.map_err(|e| PyValueError::new_err(e.to_string()))?;
-    t.validate()
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
-    Ok(t)
+    let t = t.and_then(|t| t.validate().map(|_| t));
+    t.map_err(|e| {
+        bad(e
+            .to_string()
+            .trim_start_matches("bad transform: ")
+            .to_string())
+    })
 }
 
 #[pymethods]
