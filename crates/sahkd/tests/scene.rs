@@ -4,7 +4,7 @@
 //! own brute force.
 
 use sahkd::scene::{Scene, SceneTree, Transform};
-use sahkd::{BuildOptions, InsideTest, Mesh, Ray, Vec3};
+use sahkd::{BuildOptions, InsideTest, Mesh, Ray, Ray64, Vec3};
 
 type V = [f64; 3];
 
@@ -440,7 +440,48 @@ fn ray_hits_match_the_brute_force_over_every_placed_triangle() {
             got,
             "ray {i}: all_hits' first is not the closest"
         );
+        // The f64 walk: a nearest (geometry, primitive) of the oracle too, mirrors remapped.
+        let r64 = Ray64::new(o, d);
+        let h64 = tree.intersect_f64(&r64);
+        assert_eq!(
+            h64.is_some(),
+            tree.occluded_f64(&r64),
+            "ray {i}: occluded_f64"
+        );
+        match h64 {
+            None => assert!(sure.is_empty(), "ray {i}: f64 missed {:?}", sure[0]),
+            Some(h) => {
+                let mine = maybe
+                    .iter()
+                    .find(|x| (x.1, x.2) == (h.geometry, h.prim))
+                    .unwrap_or_else(|| panic!("ray {i}: f64 hit {h:?} is no hit of the oracle"));
+                let tol = 1e-4 * maybe[0].0.max(1.0);
+                assert!(
+                    mine.0 - maybe[0].0 < tol,
+                    "ray {i}: f64 {h:?} is not the nearest"
+                );
+                if sure.first().map(|s| (s.1, s.2)) == Some((h.geometry, h.prim)) {
+                    assert!(
+                        (h.u - mine.3).abs() < 1e-3 && (h.v - mine.4).abs() < 1e-3,
+                        "ray {i}"
+                    );
+                }
+            }
+        }
     }
+    let rays64: Vec<Ray64> = rays
+        .iter()
+        .map(|r| Ray64::new(f64s(r.origin), f64s(r.direction)))
+        .collect();
+    let batch64 = tree.intersect_batch_f64(&rays64);
+    for (r, h) in rays64.iter().zip(&batch64) {
+        assert_eq!(*h, tree.intersect_f64(r));
+    }
+    let occluded64 = tree.occluded_batch_f64(&rays64);
+    assert!(batch64
+        .iter()
+        .zip(&occluded64)
+        .all(|(h, &o)| h.is_some() == o));
     assert_eq!(tree.all_hits_batch(&rays)[17], tree.all_hits(&rays[17]));
     // The copies make ties (the duplicate mesh, the identity instance): they must occur.
     assert!(hits > 2000 && ties > 100, "{hits} hits, {ties} ties");
