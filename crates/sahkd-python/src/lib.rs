@@ -10,6 +10,7 @@ mod arrays;
 mod format;
 mod options;
 mod pool;
+mod scene;
 
 use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
@@ -677,6 +678,7 @@ fn load(py: Python<'_>, path: PathBuf) -> PyResult<PyKdTree> {
 #[pymodule]
 fn _sahkd(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyKdTree>()?;
+    m.add_class::<scene::PyScene>()?;
     m.add_function(wrap_pyfunction!(from_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

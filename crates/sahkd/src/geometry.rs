@@ -121,7 +121,11 @@ impl Aabb {
     /// True when the box contains no point (a flat box, `lo == hi` on an axis, is not empty;
     /// a NaN bound makes it empty).
     pub fn is_empty(&self) -> bool {
-        (0..3).any(|a| self.lo[a].partial_cmp(&self.hi[a]).is_none_or(|o| o.is_gt()))
+        (0..3).any(|a| {
+            self.lo[a]
+                .partial_cmp(&self.hi[a])
+                .is_none_or(|o| o.is_gt())
+        })
     }
     pub fn extent(&self) -> Vec3 {
         self.hi - self.lo

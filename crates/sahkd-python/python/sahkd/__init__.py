@@ -10,11 +10,24 @@
 
 Builds and queries run on every core (or `threads=`) with the interpreter released. Trees
 pickle (they travel as their bytes) and save to files (`tree.save(path)`, `sahkd.load(path)`).
-`sahkd.trimesh.RayMeshIntersector` is a drop-in ray intersector for trimesh meshes, and
+`sahkd.Scene` holds several meshes and their instances (transformed copies) in one tree,
+with the geometry id in every answer. `sahkd.trimesh.RayMeshIntersector` is a drop-in ray
+intersector for trimesh meshes, and
 `python -m sahkd.compare MESH` times sahkd against the other ray casters installed.
 """
 
-from ._sahkd import KdTree, __version__, from_bytes, load
-from ._types import AllHits, Closest, Hits
+from ._sahkd import KdTree, Scene, __version__, from_bytes, load
+from ._types import AllHits, Closest, Hits, SceneClosest, SceneHits
 
-__all__ = ["KdTree", "load", "from_bytes", "Hits", "AllHits", "Closest", "__version__"]
+__all__ = [
+    "KdTree",
+    "Scene",
+    "load",
+    "from_bytes",
+    "Hits",
+    "AllHits",
+    "Closest",
+    "SceneHits",
+    "SceneClosest",
+    "__version__",
+]

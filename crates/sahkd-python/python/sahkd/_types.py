@@ -31,3 +31,11 @@ class AllHits(namedtuple("AllHits", ["t", "prim", "u", "v", "offsets"])):
 Closest = namedtuple("Closest", ["point", "distance", "prim"])
 Closest.__doc__ = """Closest point of the mesh to each query point: point (float64, (N, 3)), distance
 (float64, (N,)), prim (int64 face index, -1 on a mesh without faces)."""
+
+SceneHits = namedtuple("SceneHits", ["t", "prim", "u", "v", "geometry_id"])
+SceneHits.__doc__ = """Closest hit of each ray in a Scene: Hits' fields (prim is the face in the mesh of
+the geometry hit, u, v its barycentrics) and geometry_id (int64, -1 on a miss)."""
+
+SceneClosest = namedtuple("SceneClosest", ["point", "distance", "prim", "geometry_id"])
+SceneClosest.__doc__ = """Closest point of a Scene to each query point: Closest's fields and the
+geometry it lies on (int64, -1 on an empty scene)."""

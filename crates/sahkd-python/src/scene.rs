@@ -1,0 +1,394 @@
+//! `sahkd.Scene`: several meshes and their instances in one tree (`sahkd::scene`), with the
+//! geometry id beside the primitive in every answer.
+//!
+//! The queries follow `KdTree`'s: the same argument checks (`arrays`), names, dtypes and miss
+//! values, the same `threads` rule, the interpreter released while they run. The scene is
+//! changed under a lock and queried through a shared handle to the last build, so a query
+//! never holds the lock while it runs and a build never waits for one.
+
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use numpy::{PyArray1, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyDict, PyType};
+use sahkd::scene::{Scene, SceneTree, Transform};
+
+use crate::{arrays, inside_arg, is_f64, namedtuple, options, pool_of, threads_arg};
+use crate::{ray_args, ray_args64};
+
+static SCENE_HITS: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+static SCENE_CLOSEST: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+
+/// Several meshes, each placed as given and again by instances, in one kd-tree.
+///
+/// add_mesh(vertices, faces) -> geometry id: a mesh (arrays as for KdTree), placed as given.
+/// add_instance(mesh_id, transform) -> geometry id: that mesh placed again, transformed by an
+/// affine 4x4 (last row 0, 0, 0, 1) or 3x4 matrix, finite and not singular; mirrors keep the
+/// mesh's inside and outside. Ids count from 0 over both calls. build(**options) builds the
+/// tree over every placed triangle with KdTree's options; the queries then answer like
+/// KdTree's, each with geometry_id (int64, -1 where prim is -1) beside prim (the face index
+/// in that geometry's mesh). contains is the union: inside any geometry. Changing the scene
+/// after build() needs another build() before the next query.
+#[pyclass(module = "sahkd", name = "Scene", frozen)]
+pub struct PyScene {
+    state: Mutex<State>,
+}
+
+#[derive(Default)]
+struct State {
+    scene: Scene,
+    built: Option<Arc<Built>>,
+    /// Changed since the last build.
+    stale: bool,
+}
+
+struct Built {
+    tree: SceneTree,
+    threads: Option<usize>,
+}
+
+impl PyScene {
+    fn lock(&self) -> MutexGuard<'_, State> {
+        // A panic cannot leave the state half changed (each change is one push), so a
+        // poisoned lock is still good.
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn built(&self) -> PyResult<Arc<Built>> {
+        let state = self.lock();
+        match &state.built {
+            None => Err(PyValueError::new_err(
+                "the scene is not built: call build() after adding meshes and instances",
+            )),
+            Some(_) if state.stale => Err(PyValueError::new_err(
+                "the scene changed since build(): call build() again",
+            )),
+            Some(b) => Ok(b.clone()),
+        }
+    }
+}
+
+/// `transform=`: a 4x4 or 3x4 array of finite numbers.
+fn transform_arg(obj: &Bound<'_, PyAny>) -> PyResult<Transform> {
+    let py = obj.py();
+    let bad = |why: String| PyValueError::new_err(format!("transform: {why}"));
+    let arr = py
+        .import("numpy")?
+        .call_method1("asarray", (obj, "float64"))
+        .map_err(|e| bad(format!("must be a 4x4 or 3x4 array of numbers ({e})")))?;
+    let shape = arr.cast::<PyUntypedArray>()?.shape().to_vec();
+    if shape != [4, 4] && shape != [3, 4] {
+        return Err(bad(format!(
+            "must be a 4x4 or 3x4 array, got shape {shape:?}"
+        )));
+    }
+    let arr = arr.cast_into::<numpy::PyArray2<f64>>()?;
+    let m = arr.try_readonly()?;
+    let m = m.as_array();
+    let row = |i: usize| [m[[i, 0]], m[[i, 1]], m[[i, 2]], m[[i, 3]]];
+    let t = if shape[0] == 4 {
+        Transform::from_4x4([row(0), row(1), row(2), row(3)])
+    } else {
+        Ok(Transform([row(0), row(1), row(2)]))
+    };
+    let t = t.and_then(|t| t.validate().map(|_| t));
+    t.map_err(|e| {
+        bad(e
+            .to_string()
+            .trim_start_matches("bad transform: ")
+            .to_string())
+    })
+}
+
+#[pymethods]
+impl PyScene {
+    #[new]
+    fn new() -> Self {
+        PyScene {
+            state: Mutex::new(State::default()),
+        }
+    }
+
+    /// Number of geometries (meshes and instances).
+    fn __len__(&self) -> usize {
+        self.lock().scene.len()
+    }
+
+    fn __repr__(&self) -> String {
+        let state = self.lock();
+        let built = match (&state.built, state.stale) {
+            (None, _) => "not built".to_string(),
+            (Some(_), true) => "changed since build".to_string(),
+            (Some(b), false) => format!("{} placed triangles", b.tree.tree().triangles().len()),
+        };
+        format!("<sahkd.Scene: {} geometries, {built}>", state.scene.len())
+    }
+
+    /// Adds a mesh, placed as given: vertices (V, 3) float32 or float64, faces (F, 3) of any
+    /// integer type. Returns its geometry id, which add_instance takes.
+    #[pyo3(text_signature = "(self, vertices, faces)")]
+    fn add_mesh(&self, vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>) -> PyResult<i64> {
+        let triangles = arrays::triangles(vertices, faces)?;
+        let mut state = self.lock();
+        let id = state
+            .scene
+            .add_triangles(triangles)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        state.stale = true;
+        Ok(id as i64)
+    }
+
+    /// Places the mesh with geometry id mesh_id (from add_mesh) again, transformed by a 4x4
+    /// or 3x4 affine matrix. Returns the instance's geometry id.
+    #[pyo3(text_signature = "(self, mesh_id, transform)")]
+    fn add_instance(
+        &self,
+        mesh_id: &Bound<'_, PyAny>,
+        transform: &Bound<'_, PyAny>,
+    ) -> PyResult<i64> {
+        let id = options::int_arg(Some(mesh_id), "mesh_id")?
+            .ok_or_else(|| PyValueError::new_err("mesh_id must be an integer, got None"))?;
+        let transform = transform_arg(transform)?;
+        let mut state = self.lock();
+        let id = u32::try_from(id).map_err(|_| {
+            PyValueError::new_err(format!(
+                "no mesh with id {id}: ids are the non-negative numbers add_mesh returned"
+            ))
+        })?;
+        let id = state
+            .scene
+            .add_instance(id, transform)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        state.stale = true;
+        Ok(id as i64)
+    }
+
+    /// Builds the tree over every placed triangle; options as for KdTree.
+    #[pyo3(
+        signature = (algorithm=None, axes=None, counting=None, clip=None, threads=None, **cost),
+        text_signature = "(self, algorithm='level', axes=None, counting=None, clip=True, threads=None, **cost)"
+    )]
+    #[allow(clippy::too_many_arguments)]
+    fn build(
+        &self,
+        py: Python<'_>,
+        algorithm: Option<&Bound<'_, PyAny>>,
+        axes: Option<&Bound<'_, PyAny>>,
+        counting: Option<&Bound<'_, PyAny>>,
+        clip: Option<&Bound<'_, PyAny>>,
+        threads: Option<&Bound<'_, PyAny>>,
+        cost: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<()> {
+        let threads = threads_arg(options::int_arg(threads, "threads")?)?;
+        let algorithm = options::str_arg(algorithm, "algorithm")?;
+        let options = options::build_options(
+            algorithm.as_deref().unwrap_or("level"),
+            options::str_arg(axes, "axes")?.as_deref(),
+            options::str_arg(counting, "counting")?.as_deref(),
+            options::bool_arg(clip, "clip", true)?,
+            threads,
+            cost,
+        )?;
+        let pool = pool_of(threads)?;
+        let run = sahkd::BuildOptions {
+            threads: None,
+            ..options
+        };
+        // A snapshot (the meshes are shared, not copied): the scene may change meanwhile,
+        // and then this build is already stale.
+        let (scene, len) = {
+            let state = self.lock();
+            (state.scene.clone(), state.scene.len())
+        };
+        let tree = py
+            .detach(|| pool.install(|| scene.build(&run)))
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let mut state = self.lock();
+        state.stale = state.scene.len() != len;
+        state.built = Some(Arc::new(Built { tree, threads }));
+        Ok(())
+    }
+
+    /// SceneHits(t, prim, u, v, geometry_id): KdTree.intersect's answer (same arguments,
+    /// dtypes and miss values; prim is the face in the geometry's mesh, u, v its
+    /// barycentrics), and geometry_id (int64, -1 on a miss). Ties in t go to the lower
+    /// geometry id, then the lower face.
+    #[pyo3(signature = (origins, directions, t_min=None, t_max=None, precision="f32"), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf, precision='f32')")]
+    fn intersect<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        t_min: Option<&Bound<'py, PyAny>>,
+        t_max: Option<&Bound<'py, PyAny>>,
+        precision: &str,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let f64_walk = is_f64(precision)?;
+        let built = self.built()?;
+        let pool = pool_of(built.threads)?;
+        let tree = &built.tree;
+        let hits = namedtuple(py, &SCENE_HITS, "SceneHits")?;
+        if f64_walk {
+            let rays = ray_args64(origins, directions, t_min, t_max)?;
+            let found = py.detach(|| pool.install(|| tree.intersect_batch_f64(&rays)));
+            let t = found.iter().map(|h| h.map_or(f64::INFINITY, |h| h.t));
+            let prim = found.iter().map(|h| h.map_or(-1, |h| h.prim as i64));
+            let u = found.iter().map(|h| h.map_or(0.0, |h| h.u));
+            let v = found.iter().map(|h| h.map_or(0.0, |h| h.v));
+            let g = found.iter().map(|h| h.map_or(-1, |h| h.geometry as i64));
+            return hits.call1((
+                PyArray1::from_iter(py, t),
+                PyArray1::from_iter(py, prim),
+                PyArray1::from_iter(py, u),
+                PyArray1::from_iter(py, v),
+                PyArray1::from_iter(py, g),
+            ));
+        }
+        let rays = ray_args(origins, directions, t_min, t_max)?;
+        let (t, prim, u, v, g) = py.detach(|| {
+            let found = pool.install(|| tree.intersect_batch(&rays));
+            let t: Vec<f32> = found
+                .iter()
+                .map(|h| h.map_or(f32::INFINITY, |h| h.t))
+                .collect();
+            let prim: Vec<i64> = found
+                .iter()
+                .map(|h| h.map_or(-1, |h| h.prim as i64))
+                .collect();
+            let u: Vec<f32> = found.iter().map(|h| h.map_or(0.0, |h| h.u)).collect();
+            let v: Vec<f32> = found.iter().map(|h| h.map_or(0.0, |h| h.v)).collect();
+            let g: Vec<i64> = found
+                .iter()
+                .map(|h| h.map_or(-1, |h| h.geometry as i64))
+                .collect();
+            (t, prim, u, v, g)
+        });
+        hits.call1((
+            PyArray1::from_vec(py, t),
+            PyArray1::from_vec(py, prim),
+            PyArray1::from_vec(py, u),
+            PyArray1::from_vec(py, v),
+            PyArray1::from_vec(py, g),
+        ))
+    }
+
+    /// Whether each ray hits any geometry with t_min <= t <= t_max, as a bool array;
+    /// arguments as for intersect.
+    #[pyo3(signature = (origins, directions, t_min=None, t_max=None, precision="f32"), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf, precision='f32')")]
+    fn occluded<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        t_min: Option<&Bound<'py, PyAny>>,
+        t_max: Option<&Bound<'py, PyAny>>,
+        precision: &str,
+    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let f64_walk = is_f64(precision)?;
+        let built = self.built()?;
+        let pool = pool_of(built.threads)?;
+        let tree = &built.tree;
+        let hit = if f64_walk {
+            let rays = ray_args64(origins, directions, t_min, t_max)?;
+            py.detach(|| pool.install(|| tree.occluded_batch_f64(&rays)))
+        } else {
+            let rays = ray_args(origins, directions, t_min, t_max)?;
+            py.detach(|| pool.install(|| tree.occluded_batch(&rays)))
+        };
+        Ok(PyArray1::from_vec(py, hit))
+    }
+
+    /// SceneClosest(point, distance, prim, geometry_id): KdTree.closest_point's answer over
+    /// every geometry (ties to the lower geometry id, then face), and the geometry (int64).
+    /// An empty scene gives NaN points, infinite distances, prim and geometry_id -1.
+    #[pyo3(text_signature = "(self, points)")]
+    fn closest_point<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let points = arrays::query_points(points)?;
+        let built = self.built()?;
+        let pool = pool_of(built.threads)?;
+        let tree = &built.tree;
+        let (point, distance, prim, g) = py.detach(|| {
+            let found = pool.install(|| tree.closest_point_batch(&points));
+            let mut point = Vec::with_capacity(3 * found.len());
+            let (mut distance, mut prim, mut g) = (Vec::new(), Vec::new(), Vec::new());
+            for c in found {
+                match c {
+                    Some(c) => {
+                        point.extend(c.point);
+                        distance.push(c.distance);
+                        prim.push(c.prim as i64);
+                        g.push(c.geometry as i64);
+                    }
+                    None => {
+                        point.extend([f64::NAN; 3]);
+                        distance.push(f64::INFINITY);
+                        prim.push(-1i64);
+                        g.push(-1i64);
+                    }
+                }
+            }
+            (point, distance, prim, g)
+        });
+        let n = distance.len();
+        let point = PyArray1::from_vec(py, point).reshape([n, 3])?;
+        namedtuple(py, &SCENE_CLOSEST, "SceneClosest")?.call1((
+            point,
+            PyArray1::from_vec(py, distance),
+            PyArray1::from_vec(py, prim),
+            PyArray1::from_vec(py, g),
+        ))
+    }
+
+    /// Distance from each point to the nearest geometry, (N,) float64 (inf on an empty scene).
+    #[pyo3(text_signature = "(self, points)")]
+    fn distance<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let points = arrays::query_points(points)?;
+        let built = self.built()?;
+        let pool = pool_of(built.threads)?;
+        let d = py.detach(|| pool.install(|| built.tree.distance_batch(&points)));
+        Ok(PyArray1::from_vec(py, d))
+    }
+
+    /// The distance, negative inside any geometry, (N,) float64; inside as for KdTree
+    /// ("parity" or "winding"), each geometry judged alone.
+    #[pyo3(signature = (points, inside="parity"), text_signature = "(self, points, inside='parity')")]
+    fn signed_distance<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        inside: &str,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let test = inside_arg(inside)?;
+        let points = arrays::query_points(points)?;
+        let built = self.built()?;
+        let pool = pool_of(built.threads)?;
+        let d = py.detach(|| pool.install(|| built.tree.signed_distance_batch(&points, test)));
+        Ok(PyArray1::from_vec(py, d))
+    }
+
+    /// Whether each point is inside any geometry, (N,) bool; inside as for signed_distance.
+    #[pyo3(signature = (points, inside="parity"), text_signature = "(self, points, inside='parity')")]
+    fn contains<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        inside: &str,
+    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let test = inside_arg(inside)?;
+        let points = arrays::query_points(points)?;
+        let built = self.built()?;
+        let pool = pool_of(built.threads)?;
+        let c = py.detach(|| pool.install(|| built.tree.contains_batch(&points, test)));
+        Ok(PyArray1::from_vec(py, c))
+    }
+}
