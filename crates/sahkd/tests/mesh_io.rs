@@ -697,8 +697,7 @@ fn obj_gives_the_same_triangles_as_ply() {
 
 #[test]
 fn obj_objects_and_groups_are_merged() {
-    // Three objects: each keeps only the vertices it uses, so the merged indices must be
-    // offset by the vertices of the objects before it.
+    // Three objects sharing one vertex list: indices are the file's, whatever the object.
     let text = "v 0 0 0\nv 2 0 0\nv 2 3 0\nv 0 3 0\nv -1 1 1.5\nv 4 -2 0.25\n\
         o first\nf 1 2 3\n\
         o second\nf 1 3 4 5\n\
@@ -706,8 +705,8 @@ fn obj_objects_and_groups_are_merged() {
     let mesh = Mesh::from_obj_bytes(text.as_bytes()).unwrap();
     assert_eq!(corners(&mesh), corners(&expected()));
     mesh.validate().unwrap();
-    // Vertices shared across objects are repeated, one copy per object.
-    assert_eq!(mesh.vertices.len(), 3 + 4 + 5);
+    // Vertices shared across objects are the file's, not one copy per object.
+    assert_eq!(mesh.vertices.len(), 6);
 }
 
 #[test]
@@ -772,8 +771,8 @@ fn obj_errors() {
     );
 }
 
-/// Texture and normal indices are not used, so bad ones are not errors (and must not
-/// reach tobj's index arithmetic, which overflows on them); a bad position index is.
+/// Texture and normal indices are not used, so bad ones are not errors (and must not reach
+/// index arithmetic, which could overflow on them); a bad position index is.
 #[test]
 fn obj_bad_texture_and_normal_indices_are_ignored_not_a_panic() {
     let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n\
