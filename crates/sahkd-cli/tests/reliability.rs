@@ -219,6 +219,38 @@ fn a_failed_bench_leaves_no_empty_output_folder() {
     assert_eq!(entries(dir.path()), Vec::<String>::new());
 }
 
+// Item 6 ------------------------------------------------------------------------------
+
+/// `info --json`'s vertex and triangle counts of an OBJ file are the file's: every `v` line is
+/// one vertex, used or not, whichever objects use it (tobj dropped unused vertices and
+/// repeated shared ones per object: 7 vertices and 2 triangles here read as 6 and 2).
+#[test]
+fn info_counts_the_vertices_of_an_obj_file_as_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("objects.obj");
+    let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 5 5 5\nv 6 6 6\nv 7 7 7\n\
+                o first\nf 1 2 3\no second\ng part\nf 2 4 3\n";
+    std::fs::write(&path, text).unwrap();
+    // Hand count: 7 v lines; triangles (1 2 3) and (2 4 3); vertices 5, 6, 7 unused.
+    let out = sahkd(&["info", s(&path), "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["vertices"], 7, "{report}");
+    assert_eq!(report["triangles"], 2, "{report}");
+    assert_eq!(report["unreferenced_vertices"], 3, "{report}");
+    assert_eq!(report["bounds"]["lo"], serde_json::json!([0.0, 0.0, 0.0]));
+    assert_eq!(report["bounds"]["hi"], serde_json::json!([1.0, 1.0, 0.0]));
+
+    // An OBJ error names the file and the line.
+    let bad = dir.path().join("bad.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 1 0\n# a comment\nf 1 2 4\n").unwrap();
+    fails(&["info", s(&bad)], 1, &["bad.obj", "line 5", "vertex 4"]);
+}
+
 // Item 7 ------------------------------------------------------------------------------
 
 #[test]
