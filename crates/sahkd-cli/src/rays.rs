@@ -63,6 +63,16 @@ fn read_rows(path: &Path, widths: &[u64], expected: &str, noun: &str) -> Result<
         .with_context(|| format!("cannot read {name}"))?
         .len();
     let mut reader = BufReader::new(file);
+    // npyz allocates the header's declared length before reading it: a lying length field
+    // (up to 4 GiB in versions 2 and 3) must not become an allocation.
+    if let Some((length, prefix)) = reader.fill_buf().ok().and_then(header_length) {
+        if (prefix + length) as u64 > file_bytes {
+            bail!(
+                "{name}: the header declares a header of {length} bytes, more than the file's \
+                 {file_bytes} bytes hold"
+            );
+        }
+    }
     // npyz multiplies the header's dimensions unchecked (a panic on overflow in debug builds,
     // a wrong count otherwise), so a shape no file could hold is refused before it looks.
     if let Some((shape, data_start)) = declared_shape(&mut reader) {
@@ -118,24 +128,29 @@ fn read_rows(path: &Path, widths: &[u64], expected: &str, noun: &str) -> Result<
     })
 }
 
+/// The length of a .npy header as its prefix declares it, and the size of that prefix;
+/// `None` when the file does not start like a .npy file (npyz then reports what is wrong).
+fn header_length(head: &[u8]) -> Option<(usize, usize)> {
+    let rest = head.strip_prefix(b"\x93NUMPY")?;
+    // Version 1 has a 2-byte header length, later versions 4 bytes.
+    match rest.first()? {
+        1 => Some((
+            u16::from_le_bytes([*rest.get(2)?, *rest.get(3)?]) as usize,
+            10,
+        )),
+        _ => Some((
+            u32::from_le_bytes(rest.get(2..6)?.try_into().ok()?) as usize,
+            12,
+        )),
+    }
+}
+
 /// The `shape` of a .npy header and where its data starts, read without consuming it;
 /// `None` when the header is not one this can read (npyz then reports what is wrong).
 fn declared_shape(reader: &mut BufReader<File>) -> Option<(Vec<u64>, u64)> {
     let head = reader.fill_buf().ok()?;
-    let rest = head.strip_prefix(b"\x93NUMPY")?;
-    // Version 1 has a 2-byte header length, later versions 4 bytes.
-    let (length, text, prefix) = match rest.first()? {
-        1 => (
-            u16::from_le_bytes([*rest.get(2)?, *rest.get(3)?]) as usize,
-            rest.get(4..)?,
-            10,
-        ),
-        _ => (
-            u32::from_le_bytes(rest.get(2..6)?.try_into().ok()?) as usize,
-            rest.get(6..)?,
-            12,
-        ),
-    };
+    let (length, prefix) = header_length(head)?;
+    let text = head.get(prefix..)?;
     let header = std::str::from_utf8(text.get(..length.min(text.len()))?).ok()?;
     let key = header
         .find("'shape'")

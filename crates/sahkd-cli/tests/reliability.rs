@@ -96,6 +96,30 @@ fn a_lying_npy_header_is_an_error_before_any_allocation() {
     }
 }
 
+/// A version 2 header whose length field declares 1.98 GB: npyz allocated that much before
+/// reading the header (found by the fuzz test of src/rays/fuzz.rs).
+#[test]
+fn a_lying_npy_header_length_is_an_error_before_any_allocation() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("hits.npz");
+    let mut bytes = npy("(1, 6)", &RAY);
+    let header = bytes.split_off(10);
+    let mut lying = b"\x93NUMPY\x02\x00".to_vec();
+    lying.extend_from_slice(&0x7600_0074u32.to_le_bytes());
+    lying.extend_from_slice(&header);
+    let path = dir.path().join("length.npy");
+    std::fs::write(&path, lying).unwrap();
+    fails(
+        &["trace", "spd:sphere:200", "--rays", s(&path), "-o", s(&out)],
+        1,
+        &[
+            "length.npy",
+            "header of 1979711604 bytes",
+            "more than the file's",
+        ],
+    );
+}
+
 // Item 3 ------------------------------------------------------------------------------
 
 #[test]
