@@ -1,7 +1,7 @@
 //! Rays and query points from `.npy` files: float32 rows of origin xyz, direction xyz, and
 //! optionally t_min, t_max; or of point xyz.
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use npyz::{DType, NpyFile, Order, TypeChar};
 use sahkd::{Ray, Vec3};
 use std::fs::File;
@@ -89,7 +89,12 @@ fn read_rows(path: &Path, widths: &[u64], expected: &str, noun: &str) -> Result<
             );
         }
     }
-    let npy = NpyFile::new(reader).with_context(|| format!("{name}: not a readable .npy file"))?;
+    let npy = NpyFile::new(reader).map_err(|e| {
+        anyhow!(
+            "{name}: not a readable .npy file: {}",
+            one_line(&e.to_string())
+        )
+    })?;
     let dtype = npy.dtype();
     if !is_float32(&dtype) {
         bail!(
@@ -117,9 +122,13 @@ fn read_rows(path: &Path, widths: &[u64], expected: &str, noun: &str) -> Result<
     }
     let rows = usize::try_from(shape[0]).with_context(|| format!("too many {noun}"))?;
     let order = npy.order();
-    let values: Vec<f32> = npy
-        .into_vec()
-        .with_context(|| format!("{name}: cannot read the {} data", &noun[..noun.len() - 1]))?;
+    let values: Vec<f32> = npy.into_vec().map_err(|e| {
+        let what = &noun[..noun.len() - 1];
+        anyhow!(
+            "{name}: cannot read the {what} data: {}",
+            one_line(&e.to_string())
+        )
+    })?;
     Ok(Rows {
         values,
         rows,
@@ -171,6 +180,26 @@ fn declared_shape(reader: &mut BufReader<File>) -> Option<(Vec<u64>, u64)> {
     Some((shape, (prefix + length) as u64))
 }
 
+/// An error of npyz in one line: a header it cannot parse comes as a multi-line parser
+/// report (position, the header with a caret under it, what was expected), which would
+/// break the CLI's one `error:` line. Keeps the first line, the position and the notes.
+fn one_line(message: &str) -> String {
+    let mut lines = message.lines().map(str::trim).filter(|l| !l.is_empty());
+    let first = lines.next().unwrap_or("");
+    let mut out = match first.split_once("-->") {
+        Some((head, at)) => format!(
+            "{} at line:column {} of the header",
+            head.trim_end().trim_end_matches(':'),
+            at.trim()
+        ),
+        None => first.to_string(),
+    };
+    for note in lines.filter_map(|l| l.strip_prefix("= ")) {
+        out += &format!(" ({note})");
+    }
+    out
+}
+
 fn is_float32(dtype: &DType) -> bool {
     matches!(dtype, DType::Plain(t) if t.type_char() == TypeChar::Float && t.size_field() == 4)
 }
@@ -211,6 +240,18 @@ fn describe_shape(shape: &[u64]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn npyz_parse_errors_become_one_line() {
+        let report = "could not parse Python expression: syntax error:  --> 1:113\n  |\n\
+                      1 | {'descr': '<f4', } $\n  |   ^---\n  |\n  = expected EOI";
+        assert_eq!(
+            one_line(report),
+            "could not parse Python expression: syntax error at line:column 1:113 of the header \
+             (expected EOI)"
+        );
+        assert_eq!(one_line("plain message"), "plain message");
+    }
 
     #[test]
     fn shapes_print_like_numpy() {

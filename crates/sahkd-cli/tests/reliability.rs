@@ -120,6 +120,28 @@ fn a_lying_npy_header_length_is_an_error_before_any_allocation() {
     );
 }
 
+/// A header npyz cannot parse gave a multi-line parser report (the header with a caret under
+/// it), so `error:` was followed by more lines (found by the fuzz test of src/rays/fuzz.rs).
+#[test]
+fn an_unparsable_npy_header_is_one_error_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("hits.npz");
+    let mut bytes = npy("(1, 6)", &RAY);
+    let end = bytes.iter().position(|&b| b == b'}').unwrap();
+    bytes[end + 2] = b'$';
+    let path = dir.path().join("syntax.npy");
+    std::fs::write(&path, bytes).unwrap();
+    fails(
+        &["trace", "spd:sphere:200", "--rays", s(&path), "-o", s(&out)],
+        1,
+        &[
+            "syntax.npy",
+            "not a readable .npy file",
+            "syntax error at line:column 1:",
+        ],
+    );
+}
+
 // Item 3 ------------------------------------------------------------------------------
 
 #[test]
