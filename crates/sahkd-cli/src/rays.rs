@@ -238,6 +238,9 @@ fn describe_shape(shape: &[u64]) -> String {
 }
 
 #[cfg(test)]
+mod fuzz;
+
+#[cfg(test)]
 mod tests {
     use super::*;
 
