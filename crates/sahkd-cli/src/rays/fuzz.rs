@@ -160,6 +160,7 @@ fn npy_case(case: u64) -> Result<(), String> {
 #[test]
 fn fuzz_npy() {
     assert!(harness::run("npy", npy_case) > 0);
+    let _ = std::fs::remove_dir_all(scratch().parent().unwrap());
 }
 
 /// Every file of `tests/corpus/` with the outcome `expected.txt` records for it:
