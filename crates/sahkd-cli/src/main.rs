@@ -11,6 +11,11 @@ mod progress;
 mod rays;
 mod resident;
 
+/// The fuzzing harness of the mesh readers, shared by the `.npy` readers' fuzz test.
+#[cfg(test)]
+#[path = "../../sahkd/tests/common/fuzz.rs"]
+mod fuzz_harness;
+
 use clap::error::ErrorKind;
 use clap::Parser;
 use std::process::ExitCode;

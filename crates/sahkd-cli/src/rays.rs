@@ -1,7 +1,7 @@
 //! Rays and query points from `.npy` files: float32 rows of origin xyz, direction xyz, and
 //! optionally t_min, t_max; or of point xyz.
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use npyz::{DType, NpyFile, Order, TypeChar};
 use sahkd::{Ray, Vec3};
 use std::fs::File;
@@ -63,6 +63,16 @@ fn read_rows(path: &Path, widths: &[u64], expected: &str, noun: &str) -> Result<
         .with_context(|| format!("cannot read {name}"))?
         .len();
     let mut reader = BufReader::new(file);
+    // npyz allocates the header's declared length before reading it: a lying length field
+    // (up to 4 GiB in versions 2 and 3) must not become an allocation.
+    if let Some((length, prefix)) = reader.fill_buf().ok().and_then(header_length) {
+        if (prefix + length) as u64 > file_bytes {
+            bail!(
+                "{name}: the header declares a header of {length} bytes, more than the file's \
+                 {file_bytes} bytes hold"
+            );
+        }
+    }
     // npyz multiplies the header's dimensions unchecked (a panic on overflow in debug builds,
     // a wrong count otherwise), so a shape no file could hold is refused before it looks.
     if let Some((shape, data_start)) = declared_shape(&mut reader) {
@@ -79,7 +89,12 @@ fn read_rows(path: &Path, widths: &[u64], expected: &str, noun: &str) -> Result<
             );
         }
     }
-    let npy = NpyFile::new(reader).with_context(|| format!("{name}: not a readable .npy file"))?;
+    let npy = NpyFile::new(reader).map_err(|e| {
+        anyhow!(
+            "{name}: not a readable .npy file: {}",
+            one_line(&e.to_string())
+        )
+    })?;
     let dtype = npy.dtype();
     if !is_float32(&dtype) {
         bail!(
@@ -107,9 +122,13 @@ fn read_rows(path: &Path, widths: &[u64], expected: &str, noun: &str) -> Result<
     }
     let rows = usize::try_from(shape[0]).with_context(|| format!("too many {noun}"))?;
     let order = npy.order();
-    let values: Vec<f32> = npy
-        .into_vec()
-        .with_context(|| format!("{name}: cannot read the {} data", &noun[..noun.len() - 1]))?;
+    let values: Vec<f32> = npy.into_vec().map_err(|e| {
+        let what = &noun[..noun.len() - 1];
+        anyhow!(
+            "{name}: cannot read the {what} data: {}",
+            one_line(&e.to_string())
+        )
+    })?;
     Ok(Rows {
         values,
         rows,
@@ -118,24 +137,29 @@ fn read_rows(path: &Path, widths: &[u64], expected: &str, noun: &str) -> Result<
     })
 }
 
+/// The length of a .npy header as its prefix declares it, and the size of that prefix;
+/// `None` when the file does not start like a .npy file (npyz then reports what is wrong).
+fn header_length(head: &[u8]) -> Option<(usize, usize)> {
+    let rest = head.strip_prefix(b"\x93NUMPY")?;
+    // Version 1 has a 2-byte header length, later versions 4 bytes.
+    match rest.first()? {
+        1 => Some((
+            u16::from_le_bytes([*rest.get(2)?, *rest.get(3)?]) as usize,
+            10,
+        )),
+        _ => Some((
+            u32::from_le_bytes(rest.get(2..6)?.try_into().ok()?) as usize,
+            12,
+        )),
+    }
+}
+
 /// The `shape` of a .npy header and where its data starts, read without consuming it;
 /// `None` when the header is not one this can read (npyz then reports what is wrong).
 fn declared_shape(reader: &mut BufReader<File>) -> Option<(Vec<u64>, u64)> {
     let head = reader.fill_buf().ok()?;
-    let rest = head.strip_prefix(b"\x93NUMPY")?;
-    // Version 1 has a 2-byte header length, later versions 4 bytes.
-    let (length, text, prefix) = match rest.first()? {
-        1 => (
-            u16::from_le_bytes([*rest.get(2)?, *rest.get(3)?]) as usize,
-            rest.get(4..)?,
-            10,
-        ),
-        _ => (
-            u32::from_le_bytes(rest.get(2..6)?.try_into().ok()?) as usize,
-            rest.get(6..)?,
-            12,
-        ),
-    };
+    let (length, prefix) = header_length(head)?;
+    let text = head.get(prefix..)?;
     let header = std::str::from_utf8(text.get(..length.min(text.len()))?).ok()?;
     let key = header
         .find("'shape'")
@@ -154,6 +178,26 @@ fn declared_shape(reader: &mut BufReader<File>) -> Option<(Vec<u64>, u64)> {
         .map(|d| d.trim_end_matches('L').parse::<u64>().ok())
         .collect::<Option<Vec<u64>>>()?;
     Some((shape, (prefix + length) as u64))
+}
+
+/// An error of npyz in one line: a header it cannot parse comes as a multi-line parser
+/// report (position, the header with a caret under it, what was expected), which would
+/// break the CLI's one `error:` line. Keeps the first line, the position and the notes.
+fn one_line(message: &str) -> String {
+    let mut lines = message.lines().map(str::trim).filter(|l| !l.is_empty());
+    let first = lines.next().unwrap_or("");
+    let mut out = match first.split_once("-->") {
+        Some((head, at)) => format!(
+            "{} at line:column {} of the header",
+            head.trim_end().trim_end_matches(':'),
+            at.trim()
+        ),
+        None => first.to_string(),
+    };
+    for note in lines.filter_map(|l| l.strip_prefix("= ")) {
+        out += &format!(" ({note})");
+    }
+    out
 }
 
 fn is_float32(dtype: &DType) -> bool {
@@ -194,8 +238,23 @@ fn describe_shape(shape: &[u64]) -> String {
 }
 
 #[cfg(test)]
+mod fuzz;
+
+#[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn npyz_parse_errors_become_one_line() {
+        let report = "could not parse Python expression: syntax error:  --> 1:113\n  |\n\
+                      1 | {'descr': '<f4', } $\n  |   ^---\n  |\n  = expected EOI";
+        assert_eq!(
+            one_line(report),
+            "could not parse Python expression: syntax error at line:column 1:113 of the header \
+             (expected EOI)"
+        );
+        assert_eq!(one_line("plain message"), "plain message");
+    }
 
     #[test]
     fn shapes_print_like_numpy() {

@@ -96,6 +96,52 @@ fn a_lying_npy_header_is_an_error_before_any_allocation() {
     }
 }
 
+/// A version 2 header whose length field declares 1.98 GB: npyz allocated that much before
+/// reading the header (found by the fuzz test of src/rays/fuzz.rs).
+#[test]
+fn a_lying_npy_header_length_is_an_error_before_any_allocation() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("hits.npz");
+    let mut bytes = npy("(1, 6)", &RAY);
+    let header = bytes.split_off(10);
+    let mut lying = b"\x93NUMPY\x02\x00".to_vec();
+    lying.extend_from_slice(&0x7600_0074u32.to_le_bytes());
+    lying.extend_from_slice(&header);
+    let path = dir.path().join("length.npy");
+    std::fs::write(&path, lying).unwrap();
+    fails(
+        &["trace", "spd:sphere:200", "--rays", s(&path), "-o", s(&out)],
+        1,
+        &[
+            "length.npy",
+            "header of 1979711604 bytes",
+            "more than the file's",
+        ],
+    );
+}
+
+/// A header npyz cannot parse gave a multi-line parser report (the header with a caret under
+/// it), so `error:` was followed by more lines (found by the fuzz test of src/rays/fuzz.rs).
+#[test]
+fn an_unparsable_npy_header_is_one_error_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("hits.npz");
+    let mut bytes = npy("(1, 6)", &RAY);
+    let end = bytes.iter().position(|&b| b == b'}').unwrap();
+    bytes[end + 2] = b'$';
+    let path = dir.path().join("syntax.npy");
+    std::fs::write(&path, bytes).unwrap();
+    fails(
+        &["trace", "spd:sphere:200", "--rays", s(&path), "-o", s(&out)],
+        1,
+        &[
+            "syntax.npy",
+            "not a readable .npy file",
+            "syntax error at line:column 1:",
+        ],
+    );
+}
+
 // Item 3 ------------------------------------------------------------------------------
 
 #[test]
@@ -217,6 +263,38 @@ fn a_failed_bench_leaves_no_empty_output_folder() {
         &["missing.ply"],
     );
     assert_eq!(entries(dir.path()), Vec::<String>::new());
+}
+
+// Item 6 ------------------------------------------------------------------------------
+
+/// `info --json`'s vertex and triangle counts of an OBJ file are the file's: every `v` line is
+/// one vertex, used or not, whichever objects use it (tobj dropped unused vertices and
+/// repeated shared ones per object: 7 vertices and 2 triangles here read as 6 and 2).
+#[test]
+fn info_counts_the_vertices_of_an_obj_file_as_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("objects.obj");
+    let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 5 5 5\nv 6 6 6\nv 7 7 7\n\
+                o first\nf 1 2 3\no second\ng part\nf 2 4 3\n";
+    std::fs::write(&path, text).unwrap();
+    // Hand count: 7 v lines; triangles (1 2 3) and (2 4 3); vertices 5, 6, 7 unused.
+    let out = sahkd(&["info", s(&path), "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["vertices"], 7, "{report}");
+    assert_eq!(report["triangles"], 2, "{report}");
+    assert_eq!(report["unreferenced_vertices"], 3, "{report}");
+    assert_eq!(report["bounds"]["lo"], serde_json::json!([0.0, 0.0, 0.0]));
+    assert_eq!(report["bounds"]["hi"], serde_json::json!([1.0, 1.0, 0.0]));
+
+    // An OBJ error names the file and the line.
+    let bad = dir.path().join("bad.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 1 0\n# a comment\nf 1 2 4\n").unwrap();
+    fails(&["info", s(&bad)], 1, &["bad.obj", "line 5", "vertex 4"]);
 }
 
 // Item 7 ------------------------------------------------------------------------------

@@ -697,8 +697,7 @@ fn obj_gives_the_same_triangles_as_ply() {
 
 #[test]
 fn obj_objects_and_groups_are_merged() {
-    // Three objects: each keeps only the vertices it uses, so the merged indices must be
-    // offset by the vertices of the objects before it.
+    // Three objects sharing one vertex list: indices are the file's, whatever the object.
     let text = "v 0 0 0\nv 2 0 0\nv 2 3 0\nv 0 3 0\nv -1 1 1.5\nv 4 -2 0.25\n\
         o first\nf 1 2 3\n\
         o second\nf 1 3 4 5\n\
@@ -706,8 +705,8 @@ fn obj_objects_and_groups_are_merged() {
     let mesh = Mesh::from_obj_bytes(text.as_bytes()).unwrap();
     assert_eq!(corners(&mesh), corners(&expected()));
     mesh.validate().unwrap();
-    // Vertices shared across objects are repeated, one copy per object.
-    assert_eq!(mesh.vertices.len(), 3 + 4 + 5);
+    // Vertices shared across objects are the file's, not one copy per object.
+    assert_eq!(mesh.vertices.len(), 6);
 }
 
 #[test]
@@ -772,8 +771,8 @@ fn obj_errors() {
     );
 }
 
-/// Texture and normal indices are not used, so bad ones are not errors (and must not
-/// reach tobj's index arithmetic, which overflows on them); a bad position index is.
+/// Texture and normal indices are not used, so bad ones are not errors (and must not reach
+/// index arithmetic, which could overflow on them); a bad position index is.
 #[test]
 fn obj_bad_texture_and_normal_indices_are_ignored_not_a_panic() {
     let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n\
@@ -789,6 +788,193 @@ fn obj_bad_texture_and_normal_indices_are_ignored_not_a_panic() {
         message.contains("line 9") && message.contains("vertex 0"),
         "{message}"
     );
+}
+
+/// Each face form and relative indices, against hand-resolved triangles.
+#[test]
+fn obj_face_forms_and_relative_indices() {
+    let vertices = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvt 1 1\nvn 0 0 1\n";
+    let cases: [(&str, &[[u32; 3]]); 7] = [
+        ("f 1 2 3", &[[0, 1, 2]]),
+        ("f 1/1 2/2 3/1", &[[0, 1, 2]]),
+        ("f 2//1 4//1 3//1", &[[1, 3, 2]]),
+        ("f 4/2/1 3/1/1 1/1/1", &[[3, 2, 0]]),
+        ("f -4 -3 -2", &[[0, 1, 2]]),
+        ("f -1/-1/-1 -2//-1 -3/-2", &[[3, 2, 1]]),
+        ("f 1 2 -1 -2", &[[0, 1, 3], [0, 3, 2]]),
+    ];
+    for (face, want) in cases {
+        let mesh = Mesh::from_obj_bytes(format!("{vertices}{face}\n").as_bytes()).unwrap();
+        assert_eq!(mesh.triangles, want, "{face}");
+        assert_eq!(mesh.vertices.len(), 4, "{face}");
+    }
+    // A relative index counts back from the vertices defined so far, not the file's.
+    let mesh =
+        Mesh::from_obj_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 9 9 9\nf -1 -2 -3\n")
+            .unwrap();
+    assert_eq!(mesh.triangles, vec![[0, 1, 2], [3, 2, 1]]);
+    // Positive indices may refer forward, to vertices defined later.
+    let mesh = Mesh::from_obj_bytes(b"f 1 2 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\n").unwrap();
+    assert_eq!(mesh.triangles, vec![[0, 1, 2]]);
+    // w divides, comments after a statement, CRLF, tabs and continued lines.
+    let mesh = Mesh::from_obj_bytes(
+        b"v 2 4 6 2 # homogeneous\r\nv\t1 0 0\r\nv 0 1 \\\r\n 0\r\nf 1 2 \\\n 3 # end\n",
+    )
+    .unwrap();
+    assert_eq!(
+        mesh.vertices,
+        vec![[1., 2., 3.], [1., 0., 0.], [0., 1., 0.]]
+    );
+    assert_eq!(mesh.triangles, vec![[0, 1, 2]]);
+}
+
+/// Every error names its line and says what is wrong.
+#[test]
+fn obj_errors_name_their_line() {
+    let v = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    let cases: Vec<(Vec<u8>, &str, &str)> = vec![
+        (
+            format!("{v}f 1 2 4\n").into(),
+            "line 4:",
+            "vertex 4, but 3 vertices",
+        ),
+        (format!("{v}f 1 2 0\n").into(), "line 4:", "vertex 0"),
+        (
+            format!("{v}f 1 -4 2\n").into(),
+            "line 4:",
+            "vertex -4, but only 3",
+        ),
+        (
+            format!("{v}f 1 2\n").into(),
+            "line 4:",
+            "has 2 vertices; a face needs at least 3",
+        ),
+        (format!("{v}f\n").into(), "line 4:", "has 0 vertices"),
+        (
+            format!("{v}f 1 2 3.5\n").into(),
+            "line 4:",
+            "'3.5' has an index that is not an integer",
+        ),
+        (
+            format!("{v}f 1 2 3/x\n").into(),
+            "line 4:",
+            "'3/x' has an index that is not an integer",
+        ),
+        (
+            format!("{v}f 1 2 3/1/1/1\n").into(),
+            "line 4:",
+            "more than three parts",
+        ),
+        (
+            format!("{v}f 1 2 99999999999999999999\n").into(),
+            "line 4:",
+            "too large",
+        ),
+        (
+            format!("{v}f 1 2 4294967297\n").into(),
+            "line 4:",
+            "4294967297",
+        ),
+        (
+            format!("v 0 0 0\nv 1 zero 0\n{v}").into(),
+            "line 2:",
+            "'zero' is not a number",
+        ),
+        (format!("{v}v 1 2\n").into(), "line 4:", "three numbers"),
+        (
+            format!("{v}v 1 2 3 4 5\n").into(),
+            "line 4:",
+            "wrong number of values",
+        ),
+        (format!("{v}v 1 2 3 0\n").into(), "line 4:", "w = 0"),
+        (
+            b"v 0 0 0\nv 1 0 0\n# \xff ok\nv 0 \xe9 0\n".to_vec(),
+            "line 4:",
+            "not UTF-8",
+        ),
+        // The first bad forward reference is reported, not the largest.
+        (
+            format!("f 1 2 5\nf 1 2 9\n{v}").into(),
+            "line 1:",
+            "vertex 5",
+        ),
+        // A continued line is reported at its first line.
+        (
+            format!("{v}\nf 1 \\\n 2 \\\n 7\n").into(),
+            "line 5:",
+            "vertex 7",
+        ),
+    ];
+    for (text, line, what) in cases {
+        let shown = String::from_utf8_lossy(&text).into_owned();
+        match Mesh::from_obj_bytes(&text) {
+            Ok(mesh) => panic!("{shown:?}: expected an error, got {mesh:?}"),
+            Err(e) => assert!(
+                e.starts_with(line) && e.contains(what),
+                "{shown:?}: {e:?} is not '{line} ... {what} ...'"
+            ),
+        }
+    }
+}
+
+/// Random meshes written as OBJ in every face form, with absolute and relative indices,
+/// objects, groups, texture coordinates, normals, comments and continued lines, read back:
+/// the writer knows the mesh, so it is the oracle.
+#[test]
+fn obj_random_files_read_as_written() {
+    use rand::{Rng, SeedableRng};
+    for seed in 0..200u64 {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let n = rng.random_range(3..40usize);
+        let vertices: Vec<[f32; 3]> = (0..n)
+            .map(|_| [0; 3].map(|_| rng.random_range(-1000..1000) as f32 / 8.0))
+            .collect();
+        let mut text = String::new();
+        let mut triangles = Vec::new();
+        let mut defined = 0;
+        while defined < n || rng.random_bool(0.5) {
+            match rng.random_range(0..8) {
+                0..=2 if defined < n => {
+                    let [x, y, z] = vertices[defined];
+                    text += &format!("v {x} {y} {z}\n");
+                    defined += 1;
+                }
+                3 if defined >= 3 => {
+                    let k = rng.random_range(3..7);
+                    let polygon: Vec<usize> =
+                        (0..k).map(|_| rng.random_range(0..defined)).collect();
+                    text += "f";
+                    for &i in &polygon {
+                        let index = if rng.random_bool(0.3) {
+                            format!("-{}", defined - i)
+                        } else {
+                            (i + 1).to_string()
+                        };
+                        text += &match rng.random_range(0..4) {
+                            0 => format!(" {index}"),
+                            1 => format!(" {index}/1"),
+                            2 => format!(" {index}//1"),
+                            _ => format!(" {index}/1/1"),
+                        };
+                        if rng.random_bool(0.1) {
+                            text += " \\\n";
+                        }
+                    }
+                    text += "\n";
+                    for j in 1..k - 1 {
+                        triangles.push([polygon[0], polygon[j], polygon[j + 1]].map(|i| i as u32));
+                    }
+                }
+                4 => text += &format!("o part{}\n", rng.random_range(0..9)),
+                5 => text += "g a b\ns off\nusemtl m\n",
+                6 => text += "vt 0.5 0.5\nvn 0 0 1\n",
+                _ => text += "# comment\n\n",
+            }
+        }
+        let mesh = Mesh::from_obj_bytes(text.as_bytes()).unwrap_or_else(|e| panic!("{e}\n{text}"));
+        assert_eq!(mesh.vertices, vertices, "seed {seed}:\n{text}");
+        assert_eq!(mesh.triangles, triangles, "seed {seed}:\n{text}");
+    }
 }
 
 proptest! {
