@@ -147,7 +147,9 @@ def trace(tree, rays, *, kind="closest", t_min=0.0, t_max=math.inf, precision="f
     the bool dask array of `KdTree.occluded`.
 
     client: a `distributed.Client`; its workers get the tree's bytes once each (scattered with
-    broadcast=True) before anything is computed. None uses the default client if there is one,
+    broadcast=True) before anything is computed; compute the results on that client
+    (`client.compute`, or `dask.compute(..., scheduler=client)` when it is not the default
+    client: the graph holds the scattered bytes as a Future). None uses the default client if there is one,
     else the bytes travel in the graph as one key, and Dask's default scheduler (or whichever
     the caller picks at compute time) runs the blocks. Each worker process unpickles the tree
     once and keeps it for later blocks and later calls.
