@@ -18,8 +18,10 @@ if [ ! -x "$venv/bin/python" ]; then
     "${PYTHON:-python3}" -m venv "$venv"
 fi
 py="$venv/bin/python"
-# trimesh's pure-Python ray intersector (the tests' reference) needs rtree.
-"$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.9.4,<2" numpy pytest trimesh rtree
+# trimesh's pure-Python ray intersector (the tests' reference) needs rtree; dask[distributed]
+# runs the sahkd.dask tests on a local cluster (they skip, saying so, where it is missing).
+"$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.9.4,<2" numpy pytest trimesh rtree \
+    "dask[distributed]>=2024"
 (cd "$here" && VIRTUAL_ENV="$venv" nice -n 10 "$venv/bin/maturin" develop --release --quiet)
 cd "$here"
 exec "$py" -m pytest tests -q "$@"
