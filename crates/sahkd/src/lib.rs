@@ -37,4 +37,4 @@ pub use geometry::{Aabb, Triangle, Vec3};
 pub use mesh::{Mesh, MeshError};
 pub use query::{ClosestPoint, InsideTest};
 pub use trace::{Hit, Hit64, Ray, Ray64, TraceStats};
-pub use tree::{KdTree, Node, TreeStats};
+pub use tree::{KdTree, LoadError, Node, TreeMeta, TreeStats};

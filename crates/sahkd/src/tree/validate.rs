@@ -16,7 +16,7 @@ const COMPLETENESS_SAMPLE: usize = 200_000;
 ///   triangles, an evenly spaced sample of 200 000 is checked.
 pub fn validate(tree: &KdTree) -> Result<(), String> {
     check_structure(tree)?;
-    check_completeness(tree)
+    check_completeness(tree, COMPLETENESS_SAMPLE)
 }
 
 fn check_structure(tree: &KdTree) -> Result<(), String> {
@@ -102,12 +102,37 @@ fn check_structure(tree: &KdTree) -> Result<(), String> {
     Ok(())
 }
 
-fn check_completeness(tree: &KdTree) -> Result<(), String> {
+/// Every split strictly inside its node's box, on a tree whose structure is known sound (a
+/// walk from the root that reaches each node once).
+pub(super) fn check_splits(tree: &KdTree) -> Result<(), String> {
+    let mut stack = vec![(0u32, tree.bounds)];
+    while let Some((i, bounds)) = stack.pop() {
+        let node = &tree.nodes[i as usize];
+        if node.is_leaf() {
+            continue;
+        }
+        let (axis, split) = (node.axis(), node.split());
+        if !(split > bounds.lo[axis] && split < bounds.hi[axis]) {
+            return Err(format!(
+                "node {i} splits axis {axis} at {split}, outside its box {:?}..{:?}",
+                bounds.lo[axis], bounds.hi[axis]
+            ));
+        }
+        let (l, r) = bounds.split(axis, split);
+        stack.push((node.left() + 1, r));
+        stack.push((node.left(), l));
+    }
+    Ok(())
+}
+
+/// Completeness of the leaves for every triangle up to `sample` of them, an evenly spaced
+/// sample of `sample` above.
+pub(super) fn check_completeness(tree: &KdTree, sample: usize) -> Result<(), String> {
     let n = tree.triangles.len();
     if n == 0 {
         return Ok(());
     }
-    let step = n.div_ceil(COMPLETENESS_SAMPLE).max(1);
+    let step = n.div_ceil(sample.max(1)).max(1);
     let scale = tree
         .bounds
         .extent()
