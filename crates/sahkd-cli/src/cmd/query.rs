@@ -88,6 +88,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         &args.builder,
         &args.points,
         &args.output,
+        context,
         &progress,
         rays::read_points,
     )?;
@@ -103,7 +104,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
 
     let report = Report {
         source: loaded.source.name(),
-        triangles: loaded.mesh.triangles.len(),
+        triangles: built.tree.triangles().len(),
         points: points.len(),
         signed: args.signed,
         inside_test: test.map(|t| match t {

@@ -104,6 +104,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         &args.builder,
         &args.rays,
         &args.output,
+        context,
         &progress,
         rays::read,
     )?;
@@ -119,7 +120,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
 
     let report = Report {
         source: loaded.source.name(),
-        triangles: loaded.mesh.triangles.len(),
+        triangles: built.tree.triangles().len(),
         rays: rays.len(),
         any_hit: args.any_hit,
         precision: args.precision,
