@@ -295,10 +295,15 @@ fn fnv1a(bytes: &[u8]) -> u64 {
     })
 }
 
-/// `body` (a file without its checksum) with a correct checksum appended.
+/// `body` (a file without its checksum) made a version 1 file (the version whose checksum is
+/// short to write here) with a correct checksum.
 fn resum(body: &[u8]) -> Vec<u8> {
     let mut out = body.to_vec();
-    out.extend_from_slice(&fnv1a(body).to_le_bytes());
+    if out[8..12] == 2u32.to_le_bytes() {
+        out[8..12].copy_from_slice(&1u32.to_le_bytes());
+    }
+    let sum = fnv1a(&out);
+    out.extend_from_slice(&sum.to_le_bytes());
     out
 }
 

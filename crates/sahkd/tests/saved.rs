@@ -93,10 +93,28 @@ fn every_builders_tree_comes_back_entry_for_entry() {
 // documentation and not against the library's own writer, and forged files can carry a
 // correct checksum.
 
+const BASIS: u64 = 0xcbf2_9ce4_8422_2325;
+const PRIME: u64 = 0x100_0000_01b3;
+
+/// Version 1's checksum: FNV-1a 64 over the bytes.
 fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
-    })
+    bytes
+        .iter()
+        .fold(BASIS, |h, &b| (h ^ u64::from(b)).wrapping_mul(PRIME))
+}
+
+/// Version 2's, as documented: words padded, word k into lane k % 4, lanes then length.
+fn lanes(bytes: &[u8]) -> u64 {
+    let mut padded = bytes.to_vec();
+    padded.resize(bytes.len().div_ceil(8) * 8, 0);
+    let mut lane = [BASIS, BASIS + 1, BASIS + 2, BASIS + 3];
+    for (k, w) in padded.chunks(8).enumerate() {
+        let w = u64::from_le_bytes(w.try_into().unwrap());
+        lane[k % 4] = ((lane[k % 4] ^ w).wrapping_mul(PRIME)).rotate_left(29);
+    }
+    lane.iter()
+        .chain([&(bytes.len() as u64)])
+        .fold(BASIS, |h, &x| (h ^ x).wrapping_mul(PRIME))
 }
 
 /// Where the counts start: after the metadata, whose length the header gives.
@@ -109,10 +127,10 @@ fn offsets(bytes: &[u8]) -> Offsets {
     Offsets { counts: 16 + m }
 }
 
-fn encode(tree: &KdTree, meta_json: &str) -> Vec<u8> {
+fn encode(tree: &KdTree, meta_json: &str, version: u32) -> Vec<u8> {
     let mut out = Vec::new();
     out.extend_from_slice(b"SAHKDTRE");
-    out.extend_from_slice(&1u32.to_le_bytes());
+    out.extend_from_slice(&version.to_le_bytes());
     out.extend_from_slice(&(meta_json.len() as u32).to_le_bytes());
     out.extend_from_slice(meta_json.as_bytes());
     for n in [
@@ -138,9 +156,13 @@ fn encode(tree: &KdTree, meta_json: &str) -> Vec<u8> {
     resum(out)
 }
 
-/// Appends (or replaces) the checksum so that only the structural checks judge the bytes.
+/// Appends the checksum of the version the body says (version 2's for any other) so that only
+/// the structural checks judge the bytes.
 fn resum(mut body: Vec<u8>) -> Vec<u8> {
-    let sum = fnv1a(&body);
+    let sum = match body.get(8..12) {
+        Some([1, 0, 0, 0]) => fnv1a(&body),
+        _ => lanes(&body),
+    };
     body.extend_from_slice(&sum.to_le_bytes());
     body
 }
@@ -154,18 +176,29 @@ fn small_tree() -> (KdTree, Vec<u8>) {
 }
 
 #[test]
-fn the_bytes_are_the_documented_version_1_layout() {
+fn the_bytes_are_the_documented_layout_and_version_1_still_opens() {
+    for n in [0, 1, 5, 12, 40] {
+        let mesh = mesh_of(&random_triangles(&mut rng(n), n as usize));
+        let options = BuildOptions::default();
+        let tree = build(&mesh, &options).unwrap().tree;
+        let bytes = tree.to_bytes(&meta(&options));
+        let Offsets { counts, .. } = offsets(&bytes);
+        let json = std::str::from_utf8(&bytes[16..counts]).unwrap();
+        assert_eq!(encode(&tree, json, 2), bytes, "{n} triangles");
+        let (back, _) = KdTree::from_bytes(&encode(&tree, json, 1)).unwrap();
+        assert_same(&tree, &back, "version 1");
+    }
     let (tree, bytes) = small_tree();
     let Offsets { counts, .. } = offsets(&bytes);
     let json = std::str::from_utf8(&bytes[16..counts]).unwrap();
-    assert_eq!(encode(&tree, json), bytes);
-    // A file as version 1 writers wrote it (no thread count in the metadata) still opens.
+    // A file as the first version 1 writers wrote it (no thread count) still opens.
     let old = encode(
         &tree,
         &format!(
             r#"{{"options":{},"build_ms":1.5,"presort_ms":0.25}}"#,
             serde_json_options(json)
         ),
+        1,
     );
     let (back, m) = KdTree::from_bytes(&old).unwrap();
     assert_same(&tree, &back, "old metadata");
@@ -251,9 +284,12 @@ fn every_flipped_byte_is_refused_and_forged_ones_never_panic() {
 fn a_wrong_version_is_named() {
     let (_, bytes) = small_tree();
     let mut v = bytes.clone();
-    v[8..12].copy_from_slice(&2u32.to_le_bytes());
-    let e = refused(&resum(v[..v.len() - 8].to_vec()), "version 2");
-    assert!(e.contains("format version 2"), "{e}");
+    v[8..12].copy_from_slice(&3u32.to_le_bytes());
+    let e = refused(&resum(v[..v.len() - 8].to_vec()), "version 3");
+    assert!(e.contains("format version 3"), "{e}");
+    // A version 2 file that says it is version 1 is summed the other way.
+    v[8..12].copy_from_slice(&1u32.to_le_bytes());
+    assert!(refused(&v, "relabelled").contains("checksum mismatch"));
     assert!(MAGIC.starts_with(b"SAHKD"));
 }
 

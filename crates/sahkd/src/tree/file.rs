@@ -1,12 +1,12 @@
 //! The `.sahkd` file: a built tree and how it was built, saved once and opened many times
 //! (the CLI's `build --save`, Python's `save`/`load` and pickling).
 //!
-//! Layout (version 1), all little-endian:
+//! Layout (versions 1 and 2), all little-endian:
 //!
 //! | bytes | content |
 //! |---|---|
 //! | 8 | magic `SAHKDTRE` |
-//! | 4 | format version (`u32`, currently 1) |
+//! | 4 | format version (`u32`, 2; version 1 files are still read) |
 //! | 4 | length `m` of the metadata (`u32`) |
 //! | m | metadata: JSON with the build options and the build's timings |
 //! | 24 | triangle, node and reference counts (`u64` each) |
@@ -14,7 +14,16 @@
 //! | 36 T | triangles: three corners of three `f32` |
 //! | 8 N | nodes: the two `u32` words of the in-memory layout (see [`crate::tree`]) |
 //! | 4 R | references (`u32`) |
-//! | 8 | FNV-1a 64 checksum of everything before it |
+//! | 8 | checksum of everything before it (below) |
+//!
+//! The versions differ in the checksum only. Version 1 sums FNV-1a 64 byte by byte: one
+//! multiply per byte in one dependency chain, slower on a large tree than everything else
+//! opening does. Version 2 sums 64-bit words (the bytes little-endian,
+//! the last word padded with zeros) in four interleaved lanes, word `k` into lane `k % 4`:
+//! `lane = ((lane ^ word) * P).rotate_left(29)` with the FNV prime `P` and lane `i` starting at
+//! the FNV offset basis plus `i`; then `h = basis`, and for each lane and finally the byte
+//! length, `h = (h ^ x) * P`. Each step is a bijection of the lane, so any change to one word
+//! changes the sum, like version 1; the lanes run side by side, about 20 times faster.
 //!
 //! Nothing read from a file is trusted: the counts must add up to the file's length before
 //! anything is allocated, and one pass over the nodes checks what makes every query safe
@@ -35,8 +44,8 @@ use std::path::Path;
 
 /// The first bytes of every tree file; commands tell a saved tree from a mesh by them.
 pub const MAGIC: &[u8; 8] = b"SAHKDTRE";
-/// The format version this library writes and reads.
-pub const VERSION: u32 = 1;
+/// The format version this library writes; it reads this one and version 1.
+pub const VERSION: u32 = 2;
 
 /// Triangles whose leaves are checked when a file is opened (all of them in smaller trees).
 const LOAD_COMPLETENESS_SAMPLE: usize = 4096;
@@ -89,32 +98,111 @@ pub fn is_tree_file(path: &Path) -> bool {
         && &head == MAGIC
 }
 
-/// FNV-1a, 64 bits: enough to tell a damaged file from a good one (not protection against
-/// deliberate tampering; the structural checks are). Kept as a running state so that writing
-/// and reading hash in pieces.
-#[derive(Clone, Copy)]
-struct Fnv(u64);
+const FNV_BASIS: u64 = 0xcbf2_9ce4_8422_2325;
+const FNV_PRIME: u64 = 0x0000_0100_0000_01b3;
 
-impl Fnv {
-    const START: Fnv = Fnv(0xcbf2_9ce4_8422_2325);
-    fn add(mut self, bytes: &[u8]) -> Fnv {
-        for &b in bytes {
-            self.0 ^= b as u64;
-            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+/// Version 1's checksum, FNV-1a 64 byte by byte. Checksums tell a damaged file from a good
+/// one; they are no protection against deliberate tampering (the structural checks are).
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes
+        .iter()
+        .fold(FNV_BASIS, |h, &b| (h ^ b as u64).wrapping_mul(FNV_PRIME))
+}
+
+/// Version 2's checksum (see the module's description), as a running state so that the
+/// writer sums its pieces as they go out.
+#[derive(Clone)]
+struct Lanes {
+    lanes: [u64; 4],
+    /// Words summed so far.
+    words: u64,
+    /// Bytes of an incomplete word.
+    pending: [u8; 8],
+    pending_len: usize,
+    len: u64,
+}
+
+impl Lanes {
+    fn new() -> Lanes {
+        Lanes {
+            lanes: [0, 1, 2, 3].map(|i| FNV_BASIS.wrapping_add(i)),
+            words: 0,
+            pending: [0; 8],
+            pending_len: 0,
+            len: 0,
         }
-        self
+    }
+
+    #[inline(always)]
+    fn step(lane: u64, word: u64) -> u64 {
+        (lane ^ word).wrapping_mul(FNV_PRIME).rotate_left(29)
+    }
+
+    fn word(&mut self, word: u64) {
+        let i = (self.words % 4) as usize;
+        self.lanes[i] = Self::step(self.lanes[i], word);
+        self.words += 1;
+    }
+
+    fn add(&mut self, mut bytes: &[u8]) {
+        self.len += bytes.len() as u64;
+        if self.pending_len > 0 {
+            let n = (8 - self.pending_len).min(bytes.len());
+            self.pending[self.pending_len..self.pending_len + n].copy_from_slice(&bytes[..n]);
+            self.pending_len += n;
+            bytes = &bytes[n..];
+            if self.pending_len < 8 {
+                return;
+            }
+            self.word(u64::from_le_bytes(self.pending));
+            self.pending_len = 0;
+        }
+        while self.words % 4 != 0 && bytes.len() >= 8 {
+            self.word(u64::from_le_bytes(bytes[..8].try_into().expect("8 bytes")));
+            bytes = &bytes[8..];
+        }
+        // The bulk: four words at a time, one per lane, in registers.
+        let mut blocks = bytes.chunks_exact(32);
+        let [mut a, mut b, mut c, mut d] = self.lanes;
+        let w = |x: &[u8], k: usize| u64::from_le_bytes(x[8 * k..8 * k + 8].try_into().unwrap());
+        for x in &mut blocks {
+            a = Self::step(a, w(x, 0));
+            b = Self::step(b, w(x, 1));
+            c = Self::step(c, w(x, 2));
+            d = Self::step(d, w(x, 3));
+        }
+        self.lanes = [a, b, c, d];
+        self.words += 4 * (bytes.len() / 32) as u64;
+        let mut rest = blocks.remainder();
+        while rest.len() >= 8 {
+            self.word(u64::from_le_bytes(rest[..8].try_into().expect("8 bytes")));
+            rest = &rest[8..];
+        }
+        self.pending[..rest.len()].copy_from_slice(rest);
+        self.pending_len = rest.len();
+    }
+
+    fn finish(mut self) -> u64 {
+        if self.pending_len > 0 {
+            self.pending[self.pending_len..].fill(0);
+            self.word(u64::from_le_bytes(self.pending));
+        }
+        self.lanes
+            .iter()
+            .chain([&self.len])
+            .fold(FNV_BASIS, |h, &x| (h ^ x).wrapping_mul(FNV_PRIME))
     }
 }
 
 /// A writer that sums what passes through it.
 struct Summed<W> {
     inner: W,
-    sum: Fnv,
+    sum: Lanes,
 }
 
 impl<W: Write> Summed<W> {
     fn put(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.sum = self.sum.add(bytes);
+        self.sum.add(bytes);
         self.inner.write_all(bytes)
     }
     /// Writes the items' bytes through a buffer of whole items, to save a call per word.
@@ -170,7 +258,7 @@ impl KdTree {
             .map_err(|_| io::Error::other("the tree's metadata is over 4 GiB"))?;
         let mut out = Summed {
             inner: out,
-            sum: Fnv::START,
+            sum: Lanes::new(),
         };
         out.put(MAGIC)?;
         out.put(&VERSION.to_le_bytes())?;
@@ -185,7 +273,7 @@ impl KdTree {
         out.put_all(&self.triangles, triangle_bytes)?;
         out.put_all(&self.nodes, node_bytes)?;
         out.put_all(&self.refs, |r| r.to_le_bytes())?;
-        let sum = out.sum.0;
+        let sum = out.sum.finish();
         out.inner.write_all(&sum.to_le_bytes())?;
         out.inner.flush()
     }
@@ -266,9 +354,9 @@ fn read(bytes: &[u8]) -> Result<(KdTree, TreeMeta), String> {
     }
     let mut r = Reader { bytes, at: 8 };
     let version = r.u32()?;
-    if version != VERSION {
+    if version != 1 && version != VERSION {
         return Err(format!(
-            "format version {version}, but this sahkd reads version {VERSION} only"
+            "format version {version}, but this sahkd reads versions 1 and {VERSION} only"
         ));
     }
     if bytes.len() < r.at + 8 {
@@ -276,10 +364,17 @@ fn read(bytes: &[u8]) -> Result<(KdTree, TreeMeta), String> {
     }
     let (body, sum) = bytes.split_at(bytes.len() - 8);
     let stored = u64::from_le_bytes(sum.try_into().expect("8 bytes"));
-    // The sum is serial byte by byte; the parse is not: run them side by side. A damaged
-    // file is reported as damaged, whatever the parse made of it.
+    // The sum and the parse run side by side. A damaged file is reported as damaged, whatever
+    // the parse made of it.
     let (summed, parsed) = rayon::join(
-        || Fnv::START.add(body).0,
+        || match version {
+            1 => fnv1a(body),
+            _ => {
+                let mut sum = Lanes::new();
+                sum.add(body);
+                sum.finish()
+            }
+        },
         || {
             parse(
                 Reader {
@@ -317,14 +412,21 @@ fn parse(mut r: Reader<'_>, file_len: usize) -> Result<(KdTree, TreeMeta), Strin
     let c = |k: usize| f32::from_le_bytes(b[4 * k..4 * k + 4].try_into().expect("4 bytes"));
     let (lo, hi) = (Vec3([c(0), c(1), c(2)]), Vec3([c(3), c(4), c(5)]));
     let bounds = Aabb::new(lo, hi);
-    let triangles = read_triangles(r.take(nt * 36)?, &bounds)?;
-    let nodes = read_nodes(r.take(nn * 8)?, nr)?;
-    let refs = read_refs(r.take(nr * 4)?, nt)?;
+    let (t, n, f) = (r.take(nt * 36)?, r.take(nn * 8)?, r.take(nr * 4)?);
+    let (triangles, (nodes, refs)) = rayon::join(
+        || read_triangles(t, &bounds),
+        || rayon::join(|| read_nodes(n, nr), || read_refs(f, nt)),
+    );
+    let (triangles, nodes, refs) = (triangles?, nodes?, refs?);
     // Leaves are stored sorted; `from_parts` keeps them so in any case (a sorted run costs
     // one comparison per reference).
     let tree = KdTree::from_parts(triangles, bounds, nodes, refs);
-    validate::check_splits(&tree)
-        .and_then(|()| validate::check_completeness(&tree, LOAD_COMPLETENESS_SAMPLE))
+    let (splits, complete) = rayon::join(
+        || validate::check_splits(&tree),
+        || validate::check_completeness(&tree, LOAD_COMPLETENESS_SAMPLE),
+    );
+    splits
+        .and(complete)
         .map_err(|e| format!("invalid tree: {e}"))?;
     Ok((tree, meta))
 }
