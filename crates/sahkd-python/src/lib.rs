@@ -641,8 +641,10 @@ impl PyKdTree {
 /// not a valid tree.
 #[pyfunction]
 fn from_bytes(py: Python<'_>, data: PyBackedBytes) -> PyResult<PyKdTree> {
+    // On this module's pools: rayon's global one is dead in a forked child that unpickles.
+    let pool = pool_of(None)?;
     let (tree, meta) = py
-        .detach(|| KdTree::from_bytes(&data))
+        .detach(|| pool.install(|| KdTree::from_bytes(&data)))
         .map_err(|e| PyValueError::new_err(format!("cannot read sahkd tree: {e}")))?;
     Ok(PyKdTree::from_tree(tree, meta))
 }
@@ -651,7 +653,9 @@ fn from_bytes(py: Python<'_>, data: PyBackedBytes) -> PyResult<PyKdTree> {
 /// ValueError if it is not a valid tree file.
 #[pyfunction]
 fn load(py: Python<'_>, path: PathBuf) -> PyResult<PyKdTree> {
-    let (tree, meta) = py.detach(|| KdTree::load(&path)).map_err(|e| match e {
+    let pool = pool_of(None)?;
+    let opened = py.detach(|| pool.install(|| KdTree::load(&path)));
+    let (tree, meta) = opened.map_err(|e| match e {
         LoadError::Io(e) => PyErr::from(e),
         LoadError::Invalid(e) => PyValueError::new_err(format!("{}: {e}", path.display())),
     })?;

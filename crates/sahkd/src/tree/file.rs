@@ -29,8 +29,9 @@
 //! anything is allocated, and one pass over the nodes checks what makes every query safe
 //! (children after their parent and in range, one parent each, leaf ranges and references in
 //! bounds, depth within the traversal's stack) while the checksum is summed beside it. No
-//! builder runs. Then splits are checked against their boxes (one walk) and completeness on a
-//! fixed sample of triangles, so opening stays linear; [`KdTree::validate`] checks it all.
+//! builder runs. Then splits are checked against their boxes and leaves for sorted references
+//! (one walk, subtrees in parallel), and completeness on a fixed sample of triangles, so
+//! opening stays linear; [`KdTree::validate`] checks it all.
 
 use super::{validate, KdTree, Node};
 use crate::build::BuildOptions;
@@ -41,6 +42,7 @@ use std::fmt;
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::Path;
+use std::sync::OnceLock;
 
 /// The first bytes of every tree file; commands tell a saved tree from a mesh by them.
 pub const MAGIC: &[u8; 8] = b"SAHKDTRE";
@@ -418,9 +420,15 @@ fn parse(mut r: Reader<'_>, file_len: usize) -> Result<(KdTree, TreeMeta), Strin
         || rayon::join(|| read_nodes(n, nr), || read_refs(f, nt)),
     );
     let (triangles, nodes, refs) = (triangles?, nodes?, refs?);
-    // Leaves are stored sorted; `from_parts` keeps them so in any case (a sorted run costs
-    // one comparison per reference).
-    let tree = KdTree::from_parts(triangles, bounds, nodes, refs);
+    // Leaves are stored sorted (as `from_parts` leaves them): checked in the walk below
+    // rather than sorted again in another pass over every leaf.
+    let tree = KdTree {
+        nodes,
+        refs,
+        triangles,
+        bounds,
+        layout: OnceLock::new(),
+    };
     let (splits, complete) = rayon::join(
         || validate::check_splits(&tree),
         || validate::check_completeness(&tree, LOAD_COMPLETENESS_SAMPLE),

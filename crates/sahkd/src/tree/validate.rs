@@ -102,26 +102,57 @@ fn check_structure(tree: &KdTree) -> Result<(), String> {
     Ok(())
 }
 
-/// Every split strictly inside its node's box, on a tree whose structure is known sound (a
-/// walk from the root that reaches each node once).
+/// Every split strictly inside its node's box and every leaf's references sorted, on a tree
+/// whose structure is known sound (each node reached once from the root). The top levels are
+/// walked here, the subtrees below them on the worker threads.
 pub(super) fn check_splits(tree: &KdTree) -> Result<(), String> {
-    let mut stack = vec![(0u32, tree.bounds)];
-    while let Some((i, bounds)) = stack.pop() {
-        let node = &tree.nodes[i as usize];
-        if node.is_leaf() {
-            continue;
+    use rayon::prelude::*;
+    let mut frontier = vec![(0u32, tree.bounds)];
+    while frontier.len() < 256
+        && frontier
+            .iter()
+            .any(|&(i, _)| !tree.nodes[i as usize].is_leaf())
+    {
+        let mut next = Vec::with_capacity(2 * frontier.len());
+        for (i, bounds) in frontier {
+            check_node(tree, i, &bounds, &mut next)?;
         }
-        let (axis, split) = (node.axis(), node.split());
-        if !(split > bounds.lo[axis] && split < bounds.hi[axis]) {
-            return Err(format!(
-                "node {i} splits axis {axis} at {split}, outside its box {:?}..{:?}",
-                bounds.lo[axis], bounds.hi[axis]
-            ));
-        }
-        let (l, r) = bounds.split(axis, split);
-        stack.push((node.left() + 1, r));
-        stack.push((node.left(), l));
+        frontier = next;
     }
+    frontier.par_iter().try_for_each(|&(i, bounds)| {
+        let mut stack = vec![(i, bounds)];
+        while let Some((i, bounds)) = stack.pop() {
+            check_node(tree, i, &bounds, &mut stack)?;
+        }
+        Ok(())
+    })
+}
+
+/// Checks node `i` with its box, and pushes its children (left on top) onto `pending`.
+#[inline]
+fn check_node(
+    tree: &KdTree,
+    i: u32,
+    bounds: &Aabb,
+    pending: &mut Vec<(u32, Aabb)>,
+) -> Result<(), String> {
+    let node = &tree.nodes[i as usize];
+    if node.is_leaf() {
+        if !tree.leaf_refs(node).is_sorted() {
+            return Err(format!("leaf {i}'s references are not sorted"));
+        }
+        return Ok(());
+    }
+    let (axis, split) = (node.axis(), node.split());
+    if !(split > bounds.lo[axis] && split < bounds.hi[axis]) {
+        return Err(format!(
+            "node {i} splits axis {axis} at {split}, outside its box {:?}..{:?}",
+            bounds.lo[axis], bounds.hi[axis]
+        ));
+    }
+    let (l, r) = bounds.split(axis, split);
+    pending.push((node.left() + 1, r));
+    pending.push((node.left(), l));
     Ok(())
 }
 
