@@ -314,7 +314,8 @@ impl KdTree {
         // Safety: the map is only read, and only within this call. Another process changing
         // the file meanwhile could change what is read (caught by the checksum, or it reads
         // as a different sound tree) or, by truncating it, fault the read, as with any map.
-        let map = unsafe { memmap2::Mmap::map(&file)? };
+        // Every page is read, so they are mapped in one call rather than one fault each.
+        let map = unsafe { memmap2::MmapOptions::new().populate().map(&file)? };
         Self::from_bytes(&map)
     }
 }
