@@ -1,16 +1,19 @@
-//! The MESH argument: a `.ply`/`.obj` file or a procedural scene spec such as
-//! `spd:sphere:10000`.
+//! The MESH argument: a `.ply`/`.obj` file, a procedural scene spec such as
+//! `spd:sphere:10000`, or (for the commands that trace) a tree saved by `build --save`,
+//! told apart by its first bytes, whatever its name.
 
 use crate::progress::Progress;
-use anyhow::{anyhow, Context, Result};
-use sahkd::{scenes, Mesh};
+use anyhow::{anyhow, bail, Context, Result};
+use sahkd::tree::file::is_tree_file;
+use sahkd::{scenes, KdTree, LoadError, Mesh, TreeMeta};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// The positional MESH argument of every command that reads a mesh.
 #[derive(clap::Args, Clone, Debug)]
 pub struct MeshArg {
-    /// A .ply or .obj file, or a procedural scene spec such as spd:sphere:10000
+    /// A .ply or .obj file, or a procedural scene spec such as spd:sphere:10000 (trace,
+    /// query, render and info also take a tree saved by `build --save`)
     #[arg(value_name = "MESH", default_value = scenes::DEFAULT_SCENE)]
     pub mesh: String,
 }
@@ -20,6 +23,8 @@ pub struct MeshArg {
 pub enum Source {
     File(PathBuf),
     Scene(String),
+    /// A `.sahkd` file: a saved tree.
+    Tree(PathBuf),
 }
 
 impl Source {
@@ -31,7 +36,9 @@ impl Source {
             .extension()
             .and_then(|e| e.to_str())
             .is_some_and(|e| e.eq_ignore_ascii_case("ply") || e.eq_ignore_ascii_case("obj"));
-        if mesh_extension || path.exists() {
+        if path.is_file() && is_tree_file(path) {
+            Source::Tree(path.to_path_buf())
+        } else if mesh_extension || path.exists() {
             Source::File(path.to_path_buf())
         } else {
             Source::Scene(arg.to_string())
@@ -43,32 +50,77 @@ impl Source {
         match self {
             Source::File(p) => p.display().to_string(),
             Source::Scene(s) => format!("{s} (procedural)"),
+            Source::Tree(p) => format!("{} (saved tree)", p.display()),
+        }
+    }
+
+    /// The file read, if any (outputs must not overwrite it).
+    pub fn file(&self) -> Option<&Path> {
+        match self {
+            Source::File(p) | Source::Tree(p) => Some(p),
+            Source::Scene(_) => None,
         }
     }
 
     pub fn name(&self) -> String {
         match self {
-            Source::File(p) => p.display().to_string(),
+            Source::File(p) | Source::Tree(p) => p.display().to_string(),
             Source::Scene(s) => s.clone(),
         }
     }
 }
 
-/// A mesh and how getting it went.
+/// A mesh, or a saved tree, and how getting it went.
 pub struct Loaded {
     pub source: Source,
+    /// Empty for a saved tree (its triangles are in the tree).
     pub mesh: Mesh,
+    /// The saved tree and how it was built, for [`Source::Tree`] (taken by the command).
+    pub saved: Option<(KdTree, TreeMeta)>,
     pub load_ms: f64,
-    /// Size of the mesh file; `None` for procedural scenes.
+    /// Size of the mesh or tree file; `None` for procedural scenes.
     pub file_bytes: Option<u64>,
 }
 
-/// Reads or generates the mesh named by the MESH argument.
+/// Reads or generates the mesh named by the MESH argument; a saved tree is refused (the
+/// command needs the mesh itself).
 pub fn load(arg: &MeshArg, progress: &Progress) -> Result<Loaded> {
+    if let Source::Tree(path) = Source::resolve(&arg.mesh) {
+        bail!(
+            "{}: is a saved tree, not a mesh (trace, query, render and info take saved trees)",
+            path.display()
+        );
+    }
+    open(arg, &[], progress)
+}
+
+/// Reads the mesh, or opens the saved tree (no build: its `saved` is set), named by the MESH
+/// argument. `builder_flags` are the builder options given on the command line: they cannot
+/// change a tree that is already built, so naming any with a saved tree is an error.
+pub fn open(arg: &MeshArg, builder_flags: &[String], progress: &Progress) -> Result<Loaded> {
     let source = Source::resolve(&arg.mesh);
+    if let (Source::Tree(path), false) = (&source, builder_flags.is_empty()) {
+        bail!(
+            "{}: is a saved tree, already built; the builder options {} apply only to a mesh",
+            path.display(),
+            builder_flags.join(", ")
+        );
+    }
     let spinner = progress.spinner(format!("loading {}", source.name()));
     let start = Instant::now();
+    let mut saved = None;
     let (mesh, file_bytes) = match &source {
+        Source::Tree(path) => {
+            let opened = KdTree::load(path).map_err(|e| match e {
+                LoadError::Io(e) => anyhow!("cannot read {}: {e}", path.display()),
+                LoadError::Invalid(e) => anyhow!("{}: {e}", path.display()),
+            })?;
+            saved = Some(opened);
+            (
+                Mesh::default(),
+                std::fs::metadata(path).map(|m| m.len()).ok(),
+            )
+        }
         Source::File(path) => {
             let mesh = Mesh::load(path)?;
             // The file was just read, so its size is there unless it vanished meanwhile.
@@ -93,6 +145,7 @@ pub fn load(arg: &MeshArg, progress: &Progress) -> Result<Loaded> {
     Ok(Loaded {
         source,
         mesh,
+        saved,
         load_ms,
         file_bytes,
     })

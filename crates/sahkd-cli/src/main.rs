@@ -17,7 +17,8 @@ mod resident;
 mod fuzz_harness;
 
 use clap::error::ErrorKind;
-use clap::Parser;
+use clap::parser::ValueSource;
+use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser};
 use std::process::ExitCode;
 
 /// Build SAH kd-trees for ray tracing, inspect meshes and trace rays.
@@ -38,11 +39,18 @@ const USAGE: u8 = 2;
 const FAILURE: u8 = 1;
 
 fn main() -> ExitCode {
-    let cli = match Cli::try_parse() {
+    let matches = match Cli::command().try_get_matches() {
+        Ok(m) => m,
+        Err(e) => return usage_error(e),
+    };
+    let cli = match Cli::from_arg_matches(&matches) {
         Ok(cli) => cli,
         Err(e) => return usage_error(e),
     };
-    let context = cmd::Context { quiet: cli.quiet };
+    let context = cmd::Context {
+        quiet: cli.quiet,
+        builder_flags: builder_flags(&matches),
+    };
     match cli.command.run(&context) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -50,6 +58,25 @@ fn main() -> ExitCode {
             ExitCode::from(FAILURE)
         }
     }
+}
+
+/// The builder options (the "Builder options" heading of the help, less `--threads`) that
+/// the command line gave explicitly, as `--name`: defaults do not count.
+fn builder_flags(matches: &ArgMatches) -> Vec<String> {
+    let Some((name, sub)) = matches.subcommand() else {
+        return Vec::new();
+    };
+    let command = Cli::command();
+    let Some(definition) = command.find_subcommand(name) else {
+        return Vec::new();
+    };
+    definition
+        .get_arguments()
+        .filter(|a| a.get_help_heading() == Some("Builder options"))
+        .filter(|a| a.get_id() != "threads")
+        .filter(|a| sub.value_source(a.get_id().as_str()) == Some(ValueSource::CommandLine))
+        .filter_map(|a| a.get_long().map(|l| format!("--{l}")))
+        .collect()
 }
 
 /// Help and version go out as clap writes them; real mistakes become one `error:` line.
@@ -98,6 +125,32 @@ mod tests {
     fn the_command_line_definition_is_consistent() {
         use clap::CommandFactory;
         Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn only_builder_options_given_explicitly_are_named() {
+        let m = Cli::command()
+            .try_get_matches_from(["sahkd", "trace", "t", "--rays", "r.npy", "-o", "h.npz"])
+            .unwrap();
+        assert!(builder_flags(&m).is_empty());
+        let m = Cli::command()
+            .try_get_matches_from([
+                "sahkd",
+                "trace",
+                "t",
+                "--rays",
+                "r.npy",
+                "-o",
+                "h.npz",
+                "--kt",
+                "1",
+                "--threads",
+                "2",
+                "--clip",
+                "on",
+            ])
+            .unwrap();
+        assert_eq!(builder_flags(&m), ["--clip", "--kt"]);
     }
 
     #[test]

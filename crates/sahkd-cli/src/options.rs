@@ -153,6 +153,14 @@ impl Builder {
         self.pool.current_num_threads()
     }
 
+    /// Takes over a saved tree's options (for the reports), keeping this run's threads.
+    pub fn adopt(&mut self, saved: &BuildOptions) {
+        self.options = BuildOptions {
+            threads: self.options.threads,
+            ..*saved
+        };
+    }
+
     /// Runs `f` inside the pool, so that rayon work it starts uses `threads()` threads.
     pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
         self.pool.install(f)

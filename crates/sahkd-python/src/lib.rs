@@ -7,7 +7,6 @@
 
 mod all_hits;
 mod arrays;
-mod format;
 mod options;
 mod pool;
 mod scene;
@@ -23,9 +22,7 @@ use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBytes, PyDict, PyTuple, PyType};
 use rayon::prelude::*;
 use rayon::ThreadPool;
-use sahkd::{Hit, InsideTest, KdTree, Ray, TreeStats};
-
-use format::Meta;
+use sahkd::{Hit, InsideTest, KdTree, LoadError, Ray, TreeMeta as Meta, TreeStats};
 
 /// Nodes as (N, 2) words and the references, as `_structure` returns them.
 type Structure<'py> = (Bound<'py, PyArray2<u32>>, Bound<'py, PyArray1<u32>>);
@@ -335,15 +332,7 @@ impl PyKdTree {
     /// The raw structure: nodes as a (N, 2) uint32 array of their two words (see the
     /// `sahkd::tree` docs) and the leaves' references as a uint32 array.
     fn _structure<'py>(&self, py: Python<'py>) -> PyResult<Structure<'py>> {
-        let words: Vec<u32> = self
-            .tree
-            .nodes()
-            .iter()
-            .flat_map(|n| {
-                let (w, b) = format::node_words(n);
-                [w, b]
-            })
-            .collect();
+        let words: Vec<u32> = self.tree.nodes().iter().flat_map(|n| n.words()).collect();
         let n = self.tree.nodes().len();
         Ok((
             PyArray1::from_vec(py, words).reshape([n, 2])?,
@@ -630,17 +619,14 @@ impl PyKdTree {
 
     /// The tree, its build options and timings as bytes (the .sahkd file format).
     fn to_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
-        let bytes = py.detach(|| format::to_bytes(&self.tree, &self.meta));
+        let bytes = py.detach(|| self.tree.to_bytes(&self.meta));
         PyBytes::new(py, &bytes)
     }
 
     /// Writes the tree to a file, to be read back by sahkd.load. The file is written whole
     /// or not at all (a temporary beside it, synced, renamed over it).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        py.detach(|| {
-            let bytes = format::to_bytes(&self.tree, &self.meta);
-            sahkd::output::write_atomically(&path, |file| std::io::Write::write_all(file, &bytes))
-        })?;
+        py.detach(|| self.tree.save(&path, &self.meta))?;
         Ok(())
     }
 
@@ -652,26 +638,29 @@ impl PyKdTree {
     }
 }
 
-fn tree_from_bytes(bytes: &[u8]) -> Result<PyKdTree, String> {
-    let (tree, meta) = format::from_bytes(bytes)?;
-    Ok(PyKdTree::from_tree(tree, meta))
-}
-
 /// Reads a tree written by KdTree.to_bytes (or pickled); raises ValueError if the data is
 /// not a valid tree.
 #[pyfunction]
 fn from_bytes(py: Python<'_>, data: PyBackedBytes) -> PyResult<PyKdTree> {
-    py.detach(|| tree_from_bytes(&data))
-        .map_err(|e| PyValueError::new_err(format!("cannot read sahkd tree: {e}")))
+    // On this module's pools: rayon's global one is dead in a forked child that unpickles.
+    let pool = pool_of(None)?;
+    let (tree, meta) = py
+        .detach(|| pool.install(|| KdTree::from_bytes(&data)))
+        .map_err(|e| PyValueError::new_err(format!("cannot read sahkd tree: {e}")))?;
+    Ok(PyKdTree::from_tree(tree, meta))
 }
 
 /// Reads a tree saved by KdTree.save; raises OSError if the file cannot be read and
 /// ValueError if it is not a valid tree file.
 #[pyfunction]
 fn load(py: Python<'_>, path: PathBuf) -> PyResult<PyKdTree> {
-    let bytes = py.detach(|| std::fs::read(&path))?;
-    py.detach(|| tree_from_bytes(&bytes))
-        .map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))
+    let pool = pool_of(None)?;
+    let opened = py.detach(|| pool.install(|| KdTree::load(&path)));
+    let (tree, meta) = opened.map_err(|e| match e {
+        LoadError::Io(e) => PyErr::from(e),
+        LoadError::Invalid(e) => PyValueError::new_err(format!("{}: {e}", path.display())),
+    })?;
+    Ok(PyKdTree::from_tree(tree, meta))
 }
 
 /// SAH kd-trees for ray casting (the Rust core of the sahkd package).

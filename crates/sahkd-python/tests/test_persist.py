@@ -125,7 +125,7 @@ def test_damaged_files_are_refused_with_the_reason(tmp_path):
         "empty": (b"", "not a sahkd tree file"),
         "text": (b"ply\nformat ascii 1.0\n", "not a sahkd tree file"),
         "magic": (b"SAHKDTRX" + good[8:], "not a sahkd tree file"),
-        "version": (good[:8] + struct.pack("<I", 2) + good[12:], "format version 2, but this sahkd reads version 1"),
+        "version": (good[:8] + struct.pack("<I", 3) + good[12:], "format version 3, but this sahkd reads versions 1 and 2"),
         "truncated": (good[: len(good) // 2], "checksum mismatch"),
         "header only": (good[:12], "truncated"),
         "flipped bit": (good[:100] + bytes([good[100] ^ 4]) + good[101:], "checksum mismatch"),

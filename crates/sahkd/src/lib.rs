@@ -39,4 +39,4 @@ pub use mesh::{Mesh, MeshError};
 pub use query::{ClosestPoint, InsideTest};
 pub use scene::{Scene, SceneClosestPoint, SceneError, SceneHit, SceneTree, Transform};
 pub use trace::{Hit, Hit64, Ray, Ray64, TraceStats};
-pub use tree::{KdTree, Node, TreeStats};
+pub use tree::{KdTree, LoadError, Node, TreeMeta, TreeStats};

@@ -1,18 +1,22 @@
-//! `sahkd build`: build a mesh's tree and report how it went.
+//! `sahkd build`: build a mesh's tree, report how it went, and with `--save` keep the tree
+//! for later commands.
 
+use super::common::saved;
 use super::Context;
 use crate::format::{self, Table};
 use crate::gpu::GpuReport;
-use crate::input::{self, Loaded, MeshArg};
+use crate::input::{self, Loaded, MeshArg, Source};
 use crate::options::{
     algorithm_name, axes_name, counting_name, switch_name, Builder, BuilderArgs, DeviceArg,
 };
+use crate::output;
 use crate::progress::Progress;
 use crate::resident::PeakResident;
-use anyhow::{bail, Result};
+use anyhow::{bail, Context as _, Result};
 use sahkd::build::LevelReport;
-use sahkd::Axes;
+use sahkd::{Axes, TreeMeta};
 use serde::Serialize;
+use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -26,6 +30,11 @@ pub struct Args {
     /// Print one JSON object on stdout instead of text
     #[arg(long)]
     pub json: bool,
+
+    /// Save the tree (with its build options and timings) to this file, to trace, query,
+    /// render or inspect later without building again; written whole or not at all
+    #[arg(long, value_name = "TREE.sahkd")]
+    pub save: Option<PathBuf>,
 
     // Last: the heading of its flattened options would carry over to any argument after it.
     #[command(flatten)]
@@ -69,13 +78,25 @@ pub struct Report<'a> {
     resident: PeakResident,
     /// `null` unless `--validate` was given.
     valid: Option<bool>,
+    /// The file the tree was saved to (`--save`), else `null`.
+    saved: Option<String>,
     levels: &'a [LevelReport],
 }
 
 pub fn run(args: Args, context: &Context) -> Result<()> {
     let progress = Progress::new(context.quiet, args.json);
-    let builder = args.builder.builder()?;
-    let built = Built::new(&args.mesh, &builder, &progress)?;
+    let source = Source::resolve(&args.mesh.mesh);
+    if let Source::Tree(path) = &source {
+        bail!(
+            "{}: is a saved tree, already built (`sahkd info` describes it; trace, query and render use it)",
+            path.display()
+        );
+    }
+    if let Some(save) = &args.save {
+        output::check(save, &source.file().into_iter().collect::<Vec<_>>())?;
+    }
+    let mut builder = args.builder.builder()?;
+    let mut built = Built::new(&args.mesh, &mut builder, &[], &progress)?;
 
     let validation = args.validate.then(|| {
         let spinner = progress.spinner("validating");
@@ -84,10 +105,29 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         result
     });
 
+    // An invalid tree is reported below, not kept.
+    let invalid = matches!(validation, Some(Err(_)));
+    if let (Some(path), false) = (&args.save, invalid) {
+        let meta = TreeMeta {
+            options: args.builder.build_options(),
+            build_ms: built.build.report.build_ms,
+            presort_ms: built.build.report.presort_ms,
+            build_threads: builder.threads(),
+        };
+        let spinner = progress.spinner(format!("saving {}", path.display()));
+        let written = built.build.tree.save(path, &meta);
+        spinner.finish_and_clear();
+        written.with_context(|| format!("cannot write {}", path.display()))?;
+        built.saved = Some(path.display().to_string());
+    }
+
     if args.json {
         format::print_json(&built.report(&builder, validation.as_ref().map(Result::is_ok)))?;
     } else {
         let mut t = built.table(&builder);
+        if let Some(path) = &built.saved {
+            t.row("saved to", path.clone());
+        }
         if let Some(result) = &validation {
             t.row(
                 "validation",
@@ -112,12 +152,29 @@ pub struct Built {
     pub build: sahkd::Build,
     /// Set when the tree was built on a GPU.
     pub gpu: Option<GpuReport>,
+    /// Where `--save` wrote the tree.
+    pub saved: Option<String>,
 }
 
 impl Built {
-    /// Loads the mesh and builds its tree on the builder's threads, with spinners.
-    pub fn new(mesh: &MeshArg, builder: &Builder, progress: &Progress) -> Result<Built> {
-        let loaded = builder.install(|| input::load(mesh, progress))?;
+    /// Loads the mesh and builds its tree on the builder's threads, with spinners; or opens
+    /// a saved tree (refused when `builder_flags` name any builder option), whose options the
+    /// builder then takes over for the reports.
+    pub fn new(
+        mesh: &MeshArg,
+        builder: &mut Builder,
+        builder_flags: &[String],
+        progress: &Progress,
+    ) -> Result<Built> {
+        let mut loaded = builder.install(|| input::open(mesh, builder_flags, progress))?;
+        if let Some(build) = saved(builder, &mut loaded) {
+            return Ok(Built {
+                loaded,
+                build,
+                gpu: None,
+                saved: None,
+            });
+        }
         let spinner = progress.spinner(format!(
             "building {} triangles",
             format::count(loaded.mesh.triangles.len() as u64)
@@ -125,7 +182,12 @@ impl Built {
         let built = builder.build_on_device(&loaded.mesh);
         spinner.finish_and_clear();
         let (build, gpu) = built?;
-        Ok(Built { loaded, build, gpu })
+        Ok(Built {
+            loaded,
+            build,
+            gpu,
+            saved: None,
+        })
     }
 
     /// The JSON report; `valid` is `None` when the tree was not validated.
@@ -135,7 +197,7 @@ impl Built {
         let report = &self.build.report;
         Report {
             source: self.loaded.source.name(),
-            triangles: self.loaded.mesh.triangles.len(),
+            triangles: self.build.tree.triangles().len(),
             device: match builder.device {
                 DeviceArg::Cpu => "cpu",
                 DeviceArg::Gpu => "gpu",
@@ -162,9 +224,10 @@ impl Built {
             bytes: stats.bytes,
             peak_working_bytes: report.peak_working_bytes,
             peak_working_bytes_per_triangle: report.peak_working_bytes as f64
-                / self.loaded.mesh.triangles.len().max(1) as f64,
-            resident: PeakResident::now(self.loaded.mesh.triangles.len()),
+                / self.build.tree.triangles().len().max(1) as f64,
+            resident: PeakResident::now(self.build.tree.triangles().len()),
             valid,
+            saved: self.saved.clone(),
             levels: &report.levels,
         }
     }
@@ -178,7 +241,7 @@ impl Built {
         t.row("mesh", self.loaded.source.describe())
             .row(
                 "triangles",
-                format::count(self.loaded.mesh.triangles.len() as u64),
+                format::count(self.build.tree.triangles().len() as u64),
             )
             .row(
                 "builder",
@@ -237,10 +300,10 @@ impl Built {
                     "{} ({:.0} bytes per triangle)",
                     format::bytes(report.peak_working_bytes as u64),
                     report.peak_working_bytes as f64
-                        / self.loaded.mesh.triangles.len().max(1) as f64
+                        / self.build.tree.triangles().len().max(1) as f64
                 ),
             );
-        let resident = PeakResident::now(self.loaded.mesh.triangles.len());
+        let resident = PeakResident::now(self.build.tree.triangles().len());
         if let Some(bytes) = resident.peak_resident_bytes {
             let per = resident.peak_resident_bytes_per_triangle.unwrap_or(0.0);
             t.row(

@@ -1,8 +1,10 @@
 //! What `trace` and `query` share: the steps before their own work ([`prepare`]), in one
 //! order so that everything a user can get wrong is refused before the long steps (the output
-//! checked against the inputs, the options, the array file read, then the mesh loaded, its
-//! tree built and its trace layout made, timed apart), and the `.npz` arrays they write.
+//! checked against the inputs, the options, the array file read, then the mesh loaded and its
+//! tree built, or a saved tree opened, and its trace layout made, timed apart), and the
+//! `.npz` arrays they write.
 
+use super::Context;
 use crate::format;
 use crate::input::{self, Loaded, MeshArg};
 use crate::options::{Builder, BuilderArgs};
@@ -11,6 +13,7 @@ use crate::progress::Progress;
 use anyhow::Result;
 use npyz::npz::NpzWriter;
 use npyz::WriterBuilder;
+use sahkd::build::BuildReport;
 use sahkd::Build;
 use std::path::Path;
 use std::time::Instant;
@@ -30,32 +33,32 @@ pub fn prepare<T>(
     builder: &BuilderArgs,
     data: &Path,
     output: &Path,
+    context: &Context,
     progress: &Progress,
     read: impl FnOnce(&Path) -> Result<T>,
 ) -> Result<Prepared<T>> {
-    let mesh_file = match input::Source::resolve(&mesh.mesh) {
-        input::Source::File(path) => Some(path),
-        input::Source::Scene(_) => None,
-    };
-    let inputs: Vec<&Path> = [Some(data), mesh_file.as_deref()]
-        .into_iter()
-        .flatten()
-        .collect();
+    let source = input::Source::resolve(&mesh.mesh);
+    let inputs: Vec<&Path> = [Some(data), source.file()].into_iter().flatten().collect();
     output::check(output, &inputs)?;
-    let builder = builder.builder()?;
+    let mut builder = builder.builder()?;
     let spinner = progress.spinner(format!("reading {}", data.display()));
     let data = read(data);
     spinner.finish_and_clear();
     let data = data?;
-    let loaded = builder.install(|| input::load(mesh, progress))?;
+    let mut loaded = builder.install(|| input::open(mesh, &context.builder_flags, progress))?;
 
-    let spinner = progress.spinner(format!(
-        "building {} triangles",
-        format::count(loaded.mesh.triangles.len() as u64)
-    ));
-    let built = builder.build(&loaded.mesh);
-    spinner.finish_and_clear();
-    let built = built?;
+    let built = match saved(&mut builder, &mut loaded) {
+        Some(built) => built,
+        None => {
+            let spinner = progress.spinner(format!(
+                "building {} triangles",
+                format::count(loaded.mesh.triangles.len() as u64)
+            ));
+            let built = builder.build(&loaded.mesh);
+            spinner.finish_and_clear();
+            built?
+        }
+    };
 
     let start = Instant::now();
     built.tree.prepare_trace();
@@ -66,6 +69,17 @@ pub fn prepare<T>(
         loaded,
         built,
         layout_ms,
+    })
+}
+
+/// The saved tree `loaded` holds, if any, as a build that took no time; the builder takes
+/// over the options it was built with, so that reports show them.
+pub fn saved(builder: &mut Builder, loaded: &mut Loaded) -> Option<Build> {
+    let (tree, meta) = loaded.saved.take()?;
+    builder.adopt(&meta.options);
+    Some(Build {
+        tree,
+        report: BuildReport::default(),
     })
 }
 

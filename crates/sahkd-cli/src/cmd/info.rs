@@ -1,11 +1,13 @@
-//! `sahkd info`: what a mesh holds, and what in it a builder will find odd.
+//! `sahkd info`: what a mesh holds, and what in it a builder will find odd; or what a saved
+//! tree holds and how it was built.
 
 use super::Context;
 use crate::format::{self, Table};
-use crate::input::{self, MeshArg, Source};
+use crate::input::{self, Loaded, MeshArg, Source};
+use crate::options::{algorithm_name, axes_name, counting_name};
 use crate::progress::Progress;
 use anyhow::Result;
-use sahkd::Mesh;
+use sahkd::{KdTree, Mesh, TreeMeta};
 use serde::Serialize;
 
 #[derive(clap::Args, Debug)]
@@ -40,9 +42,38 @@ struct Report {
     unreferenced_vertices: usize,
 }
 
+/// The JSON report on a saved tree.
+#[derive(Serialize)]
+struct TreeReport {
+    source: String,
+    /// "tree".
+    kind: &'static str,
+    file_bytes: Option<u64>,
+    /// Opening the file (map, checks), no build.
+    load_ms: f64,
+    triangles: usize,
+    bounds: Option<Bounds>,
+    nodes: usize,
+    leaves: usize,
+    references: usize,
+    max_depth: u32,
+    sah_cost: f64,
+    algorithm: &'static str,
+    axes: &'static str,
+    counting: &'static str,
+    clip: bool,
+    /// How the saved tree's build went.
+    build_ms: f64,
+    presort_ms: f64,
+    build_threads: usize,
+}
+
 pub fn run(args: Args, context: &Context) -> Result<()> {
     let progress = Progress::new(context.quiet, args.json);
-    let loaded = input::load(&args.mesh, &progress)?;
+    let mut loaded = input::open(&args.mesh, &[], &progress)?;
+    if let Some((tree, meta)) = loaded.saved.take() {
+        return tree_info(&loaded, &tree, &meta, args.json);
+    }
     let mesh = &loaded.mesh;
     let bounds = mesh.bounds();
     let report = Report {
@@ -50,6 +81,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         kind: match loaded.source {
             Source::File(_) => "file",
             Source::Scene(_) => "scene",
+            Source::Tree(_) => "tree",
         },
         file_bytes: loaded.file_bytes,
         load_ms: loaded.load_ms,
@@ -90,6 +122,73 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         .row(
             "unreferenced vertices",
             format::count(report.unreferenced_vertices as u64),
+        );
+    format::print_text(&t.render())
+}
+
+fn tree_info(loaded: &Loaded, tree: &KdTree, meta: &TreeMeta, json: bool) -> Result<()> {
+    let o = &meta.options;
+    let stats = tree.stats(&o.cost);
+    let b = tree.bounds();
+    let report = TreeReport {
+        source: loaded.source.name(),
+        kind: "tree",
+        file_bytes: loaded.file_bytes,
+        load_ms: loaded.load_ms,
+        triangles: tree.triangles().len(),
+        bounds: (!b.is_empty()).then_some(Bounds {
+            lo: b.lo.0,
+            hi: b.hi.0,
+        }),
+        nodes: stats.nodes,
+        leaves: stats.leaves,
+        references: stats.references,
+        max_depth: stats.max_depth,
+        sah_cost: stats.sah_cost,
+        algorithm: algorithm_name(o.algorithm),
+        axes: axes_name(o.axes),
+        counting: counting_name(o.counting),
+        clip: o.clip,
+        build_ms: meta.build_ms,
+        presort_ms: meta.presort_ms,
+        build_threads: meta.build_threads,
+    };
+    if json {
+        return format::print_json(&report);
+    }
+    let mut t = Table::default();
+    t.row("tree", loaded.source.describe());
+    if let Some(bytes) = report.file_bytes {
+        t.row(
+            "file size",
+            format!("{} ({} bytes)", format::bytes(bytes), format::count(bytes)),
+        );
+    }
+    t.row("open time", format::ms(report.load_ms))
+        .row("triangles", format::count(report.triangles as u64))
+        .row(
+            "bounds",
+            match &report.bounds {
+                Some(b) => format!("{} - {}", point(b.lo), point(b.hi)),
+                None => "empty".to_string(),
+            },
+        )
+        .row("nodes", format::count(report.nodes as u64))
+        .row("leaves", format::count(report.leaves as u64))
+        .row("references", format::count(report.references as u64))
+        .row("max depth", report.max_depth.to_string())
+        .row("SAH cost", format!("{:.3}", report.sah_cost))
+        .row(
+            "built by",
+            format!(
+                "{}, {} axes, {} counting, clip {}, {} threads, in {}",
+                report.algorithm,
+                report.axes,
+                report.counting,
+                if report.clip { "on" } else { "off" },
+                report.build_threads,
+                format::ms(report.build_ms)
+            ),
         );
     format::print_text(&t.render())
 }

@@ -13,10 +13,13 @@ use anyhow::Result;
 use clap::Subcommand;
 
 /// What every command gets besides its own arguments.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Context {
     /// `--quiet`: no progress display and no messages on stderr.
     pub quiet: bool,
+    /// The builder options given on the command line (`--kt`, ...; not `--threads`, which
+    /// also sets the threads of the queries), as written: refused with a saved tree.
+    pub builder_flags: Vec<String>,
 }
 
 #[derive(Subcommand, Debug)]

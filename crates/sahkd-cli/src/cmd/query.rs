@@ -92,6 +92,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         &args.builder,
         &args.points,
         &args.output,
+        context,
         &progress,
         rays::read_points,
     )?;
@@ -107,7 +108,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
 
     let report = Report {
         source: loaded.source.name(),
-        triangles: loaded.mesh.triangles.len(),
+        triangles: built.tree.triangles().len(),
         points: points.len(),
         signed: args.signed,
         inside_test: test.map(|t| match t {
@@ -127,7 +128,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         inside: args
             .signed
             .then(|| answers.iter().filter(|a| a.1 == Some(true)).count()),
-        resident: PeakResident::now(loaded.mesh.triangles.len()),
+        resident: PeakResident::now(built.tree.triangles().len()),
     };
     if args.json {
         format::print_json(&report)?;

@@ -171,12 +171,12 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
     // Everything the user can get wrong is checked before the long steps; the picture goes
     // to a temporary file beside the output, renamed over it only once it is complete.
     check_output(&args.output, &args.mesh)?;
-    let builder = args.builder.builder()?;
+    let mut builder = args.builder.builder()?;
     // The picture's own limits (size, samples) need no tree: checked with a stand-in camera.
     if let Err(e) = args.render_options_with(standin_camera()).validate() {
         bail!("cannot render: {e}");
     }
-    let built = Built::new(&args.mesh, &builder, &progress)?;
+    let built = Built::new(&args.mesh, &mut builder, &context.builder_flags, &progress)?;
     let options = args.render_options(&built.build.tree);
     if let Err(e) = options.validate() {
         bail!("cannot render: {e}");
@@ -342,10 +342,8 @@ fn check_output(path: &Path, mesh: &MeshArg) -> Result<()> {
             }
         );
     }
-    match Source::resolve(&mesh.mesh) {
-        Source::File(mesh_file) => output::check(path, &[&mesh_file]),
-        Source::Scene(_) => output::check(path, &[]),
-    }
+    let source = Source::resolve(&mesh.mesh);
+    output::check(path, &source.file().into_iter().collect::<Vec<_>>())
 }
 
 /// Encodes the picture and writes it whole to `path`.

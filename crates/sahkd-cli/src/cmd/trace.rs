@@ -108,6 +108,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         &args.builder,
         &args.rays,
         &args.output,
+        context,
         &progress,
         rays::read,
     )?;
@@ -123,7 +124,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
 
     let report = Report {
         source: loaded.source.name(),
-        triangles: loaded.mesh.triangles.len(),
+        triangles: built.tree.triangles().len(),
         rays: rays.len(),
         any_hit: args.any_hit,
         precision: args.precision,
@@ -138,7 +139,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
             0.0
         },
         hits: hits.count(),
-        resident: PeakResident::now(loaded.mesh.triangles.len()),
+        resident: PeakResident::now(built.tree.triangles().len()),
     };
     if args.json {
         format::print_json(&report)?;

@@ -11,9 +11,11 @@
 //! the same format. Within a leaf the references are sorted by triangle index, which makes
 //! trees from different builders comparable entry by entry.
 
+pub mod file;
 mod stats;
 mod validate;
 
+pub use file::{LoadError, TreeMeta};
 pub use stats::TreeStats;
 
 use crate::geometry::{Aabb, Triangle};
@@ -84,6 +86,17 @@ impl Node {
     #[inline(always)]
     pub fn count(&self) -> u32 {
         self.bits >> 2
+    }
+    /// The node's two words as laid out above (`[word, bits]`), as files and Python see them.
+    #[inline]
+    pub fn words(&self) -> [u32; 2] {
+        [self.word, self.bits]
+    }
+    /// A node from its two words; any pair is some node, so what it says must be checked
+    /// against the tree it goes into (as `KdTree::from_bytes` does).
+    #[inline]
+    pub fn from_words([word, bits]: [u32; 2]) -> Node {
+        Node { word, bits }
     }
     pub fn kind(&self) -> NodeKind {
         if self.is_leaf() {

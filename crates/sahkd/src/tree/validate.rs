@@ -16,7 +16,7 @@ const COMPLETENESS_SAMPLE: usize = 200_000;
 ///   triangles, an evenly spaced sample of 200 000 is checked.
 pub fn validate(tree: &KdTree) -> Result<(), String> {
     check_structure(tree)?;
-    check_completeness(tree)
+    check_completeness(tree, COMPLETENESS_SAMPLE)
 }
 
 fn check_structure(tree: &KdTree) -> Result<(), String> {
@@ -102,12 +102,68 @@ fn check_structure(tree: &KdTree) -> Result<(), String> {
     Ok(())
 }
 
-fn check_completeness(tree: &KdTree) -> Result<(), String> {
+/// Every split strictly inside its node's box and every leaf's references sorted, on a tree
+/// whose structure is known sound (each node reached once from the root). The top levels are
+/// walked here, the subtrees below them on the worker threads.
+pub(super) fn check_splits(tree: &KdTree) -> Result<(), String> {
+    use rayon::prelude::*;
+    let mut frontier = vec![(0u32, tree.bounds)];
+    while frontier.len() < 256
+        && frontier
+            .iter()
+            .any(|&(i, _)| !tree.nodes[i as usize].is_leaf())
+    {
+        let mut next = Vec::with_capacity(2 * frontier.len());
+        for (i, bounds) in frontier {
+            check_node(tree, i, &bounds, &mut next)?;
+        }
+        frontier = next;
+    }
+    frontier.par_iter().try_for_each(|&(i, bounds)| {
+        let mut stack = vec![(i, bounds)];
+        while let Some((i, bounds)) = stack.pop() {
+            check_node(tree, i, &bounds, &mut stack)?;
+        }
+        Ok(())
+    })
+}
+
+/// Checks node `i` with its box, and pushes its children (left on top) onto `pending`.
+#[inline]
+fn check_node(
+    tree: &KdTree,
+    i: u32,
+    bounds: &Aabb,
+    pending: &mut Vec<(u32, Aabb)>,
+) -> Result<(), String> {
+    let node = &tree.nodes[i as usize];
+    if node.is_leaf() {
+        if !tree.leaf_refs(node).is_sorted() {
+            return Err(format!("leaf {i}'s references are not sorted"));
+        }
+        return Ok(());
+    }
+    let (axis, split) = (node.axis(), node.split());
+    if !(split > bounds.lo[axis] && split < bounds.hi[axis]) {
+        return Err(format!(
+            "node {i} splits axis {axis} at {split}, outside its box {:?}..{:?}",
+            bounds.lo[axis], bounds.hi[axis]
+        ));
+    }
+    let (l, r) = bounds.split(axis, split);
+    pending.push((node.left() + 1, r));
+    pending.push((node.left(), l));
+    Ok(())
+}
+
+/// Completeness of the leaves for every triangle up to `sample` of them, an evenly spaced
+/// sample of `sample` above.
+pub(super) fn check_completeness(tree: &KdTree, sample: usize) -> Result<(), String> {
     let n = tree.triangles.len();
     if n == 0 {
         return Ok(());
     }
-    let step = n.div_ceil(COMPLETENESS_SAMPLE).max(1);
+    let step = n.div_ceil(sample.max(1)).max(1);
     let scale = tree
         .bounds
         .extent()
