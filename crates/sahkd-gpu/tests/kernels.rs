@@ -333,7 +333,7 @@ fn stable_partition_matches_reference() {
         let mut owner = Vec::new();
         let mut side = Vec::new();
         let mut layout = Vec::new();
-        let mut expected = Vec::new();
+        let mut expected: Vec<u32> = Vec::new();
         for s in 0..segments {
             let first = values.len() as u32;
             let len = rng.random_range(0..=max_len);
