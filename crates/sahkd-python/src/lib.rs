@@ -7,6 +7,7 @@
 
 mod all_hits;
 mod arrays;
+mod columns;
 mod options;
 mod pool;
 mod scene;
@@ -14,6 +15,7 @@ mod scene;
 use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 
+use columns::{per_point, ClosestColumns, HitColumns};
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -365,56 +367,22 @@ impl PyKdTree {
         t_max: Option<&Bound<'py, PyAny>>,
         precision: &str,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let pool = self.pool()?;
+        let hits = namedtuple(py, &HITS, "Hits")?;
         if is_f64(precision)? {
             let rays = ray_args64(origins, directions, t_min, t_max)?;
-            let pool = self.pool()?;
-            let hits = py.detach(|| pool.install(|| self.tree.intersect_batch_f64(&rays)));
-            let t = hits.iter().map(|h| h.map_or(f64::INFINITY, |h| h.t));
-            let prim = hits.iter().map(|h| h.map_or(-1, |h| h.prim as i64));
-            let u = hits.iter().map(|h| h.map_or(0.0, |h| h.u));
-            let v = hits.iter().map(|h| h.map_or(0.0, |h| h.v));
-            return namedtuple(py, &HITS, "Hits")?.call1((
-                PyArray1::from_iter(py, t),
-                PyArray1::from_iter(py, prim),
-                PyArray1::from_iter(py, u),
-                PyArray1::from_iter(py, v),
-            ));
+            let columns = py.detach(|| {
+                let found = pool.install(|| self.tree.intersect_batch_f64(&rays));
+                HitColumns::new(&found, f64::INFINITY, 0.0, |h| (h.t, h.prim, h.u, h.v))
+            });
+            return hits.call1(columns.into_tuple(py)?);
         }
         let rays = ray_args(origins, directions, t_min, t_max)?;
-        let pool = self.pool()?;
-        let (t, prim, u, v) = py.detach(|| {
-            let hits = pool.install(|| self.tree.intersect_batch(&rays));
-            let n = hits.len();
-            let (mut t, mut prim, mut u, mut v) = (
-                Vec::with_capacity(n),
-                Vec::with_capacity(n),
-                Vec::with_capacity(n),
-                Vec::with_capacity(n),
-            );
-            for h in hits {
-                match h {
-                    Some(h) => {
-                        t.push(h.t);
-                        prim.push(h.prim as i64);
-                        u.push(h.u);
-                        v.push(h.v);
-                    }
-                    None => {
-                        t.push(f32::INFINITY);
-                        prim.push(-1i64);
-                        u.push(0.0f32);
-                        v.push(0.0f32);
-                    }
-                }
-            }
-            (t, prim, u, v)
+        let columns = py.detach(|| {
+            let found = pool.install(|| self.tree.intersect_batch(&rays));
+            HitColumns::new(&found, f32::INFINITY, 0.0, |h| (h.t, h.prim, h.u, h.v))
         });
-        namedtuple(py, &HITS, "Hits")?.call1((
-            PyArray1::from_vec(py, t),
-            PyArray1::from_vec(py, prim),
-            PyArray1::from_vec(py, u),
-            PyArray1::from_vec(py, v),
-        ))
+        hits.call1(columns.into_tuple(py)?)
     }
 
     /// Whether each ray hits anything with t_min <= t <= t_max, as a bool array (each ray
@@ -510,34 +478,11 @@ impl PyKdTree {
     ) -> PyResult<Bound<'py, PyAny>> {
         let points = arrays::query_points(points)?;
         let pool = self.pool()?;
-        let (point, distance, prim) = py.detach(|| {
+        let columns = py.detach(|| {
             let found = pool.install(|| self.tree.closest_point_batch(&points));
-            let mut point = Vec::with_capacity(3 * found.len());
-            let mut distance = Vec::with_capacity(found.len());
-            let mut prim = Vec::with_capacity(found.len());
-            for c in found {
-                match c {
-                    Some(c) => {
-                        point.extend(c.point);
-                        distance.push(c.distance);
-                        prim.push(c.prim as i64);
-                    }
-                    None => {
-                        point.extend([f64::NAN; 3]);
-                        distance.push(f64::INFINITY);
-                        prim.push(-1i64);
-                    }
-                }
-            }
-            (point, distance, prim)
+            ClosestColumns::new(&found, |c| (c.point, c.distance, c.prim))
         });
-        let n = distance.len();
-        let point = PyArray1::from_vec(py, point).reshape([n, 3])?;
-        namedtuple(py, &CLOSEST, "Closest")?.call1((
-            point,
-            PyArray1::from_vec(py, distance),
-            PyArray1::from_vec(py, prim),
-        ))
+        namedtuple(py, &CLOSEST, "Closest")?.call1(columns.into_tuple(py)?)
     }
 
     /// Distance from each point to the mesh, (N,) float64 (inf on a mesh without faces).
@@ -547,10 +492,8 @@ impl PyKdTree {
         py: Python<'py>,
         points: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let points = arrays::query_points(points)?;
         let pool = self.pool()?;
-        let d = py.detach(|| pool.install(|| self.tree.distance_batch(&points)));
-        Ok(PyArray1::from_vec(py, d))
+        per_point(py, points, &pool, |p| self.tree.distance_batch(p))
     }
 
     /// Distance from each point to the mesh, negative inside, (N,) float64; 0 on the surface.
@@ -565,10 +508,10 @@ impl PyKdTree {
         inside: &str,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let test = inside_arg(inside)?;
-        let points = arrays::query_points(points)?;
         let pool = self.pool()?;
-        let d = py.detach(|| pool.install(|| self.tree.signed_distance_batch(&points, test)));
-        Ok(PyArray1::from_vec(py, d))
+        per_point(py, points, &pool, |p| {
+            self.tree.signed_distance_batch(p, test)
+        })
     }
 
     /// Whether each point is inside the mesh, (N,) bool; inside as for signed_distance.
@@ -581,10 +524,8 @@ impl PyKdTree {
         inside: &str,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let test = inside_arg(inside)?;
-        let points = arrays::query_points(points)?;
         let pool = self.pool()?;
-        let c = py.detach(|| pool.install(|| self.tree.contains_batch(&points, test)));
-        Ok(PyArray1::from_vec(py, c))
+        per_point(py, points, &pool, |p| self.tree.contains_batch(p, test))
     }
 
     /// The generalized winding number of the mesh around each point, (N,) float64: 1 inside
@@ -596,10 +537,8 @@ impl PyKdTree {
         py: Python<'py>,
         points: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let points = arrays::query_points(points)?;
         let pool = self.pool()?;
-        let w = py.detach(|| pool.install(|| self.tree.winding_number_batch(&points)));
-        Ok(PyArray1::from_vec(py, w))
+        per_point(py, points, &pool, |p| self.tree.winding_number_batch(p))
     }
 
     /// The brute-force oracle for tests: intersect_all's answer computed by testing every

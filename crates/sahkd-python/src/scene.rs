@@ -15,6 +15,7 @@ use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyType};
 use sahkd::scene::{Scene, SceneTree, Transform};
 
+use crate::columns::{per_point, ClosestColumns, HitColumns};
 use crate::{arrays, inside_arg, is_f64, namedtuple, options, pool_of, threads_arg};
 use crate::{ray_args, ray_args64};
 
@@ -232,46 +233,20 @@ impl PyScene {
         let hits = namedtuple(py, &SCENE_HITS, "SceneHits")?;
         if f64_walk {
             let rays = ray_args64(origins, directions, t_min, t_max)?;
-            let found = py.detach(|| pool.install(|| tree.intersect_batch_f64(&rays)));
-            let t = found.iter().map(|h| h.map_or(f64::INFINITY, |h| h.t));
-            let prim = found.iter().map(|h| h.map_or(-1, |h| h.prim as i64));
-            let u = found.iter().map(|h| h.map_or(0.0, |h| h.u));
-            let v = found.iter().map(|h| h.map_or(0.0, |h| h.v));
-            let g = found.iter().map(|h| h.map_or(-1, |h| h.geometry as i64));
-            return hits.call1((
-                PyArray1::from_iter(py, t),
-                PyArray1::from_iter(py, prim),
-                PyArray1::from_iter(py, u),
-                PyArray1::from_iter(py, v),
-                PyArray1::from_iter(py, g),
-            ));
+            let columns = py.detach(|| {
+                let found = pool.install(|| tree.intersect_batch_f64(&rays));
+                HitColumns::new(&found, f64::INFINITY, 0.0, |h| (h.t, h.prim, h.u, h.v))
+                    .and_geometry(&found, |h| h.geometry)
+            });
+            return hits.call1(columns.into_tuple(py)?);
         }
         let rays = ray_args(origins, directions, t_min, t_max)?;
-        let (t, prim, u, v, g) = py.detach(|| {
+        let columns = py.detach(|| {
             let found = pool.install(|| tree.intersect_batch(&rays));
-            let t: Vec<f32> = found
-                .iter()
-                .map(|h| h.map_or(f32::INFINITY, |h| h.t))
-                .collect();
-            let prim: Vec<i64> = found
-                .iter()
-                .map(|h| h.map_or(-1, |h| h.prim as i64))
-                .collect();
-            let u: Vec<f32> = found.iter().map(|h| h.map_or(0.0, |h| h.u)).collect();
-            let v: Vec<f32> = found.iter().map(|h| h.map_or(0.0, |h| h.v)).collect();
-            let g: Vec<i64> = found
-                .iter()
-                .map(|h| h.map_or(-1, |h| h.geometry as i64))
-                .collect();
-            (t, prim, u, v, g)
+            HitColumns::new(&found, f32::INFINITY, 0.0, |h| (h.t, h.prim, h.u, h.v))
+                .and_geometry(&found, |h| h.geometry)
         });
-        hits.call1((
-            PyArray1::from_vec(py, t),
-            PyArray1::from_vec(py, prim),
-            PyArray1::from_vec(py, u),
-            PyArray1::from_vec(py, v),
-            PyArray1::from_vec(py, g),
-        ))
+        hits.call1(columns.into_tuple(py)?)
     }
 
     /// Whether each ray hits any geometry with t_min <= t <= t_max, as a bool array;
@@ -313,36 +288,12 @@ impl PyScene {
         let built = self.built()?;
         let pool = pool_of(built.threads)?;
         let tree = &built.tree;
-        let (point, distance, prim, g) = py.detach(|| {
+        let columns = py.detach(|| {
             let found = pool.install(|| tree.closest_point_batch(&points));
-            let mut point = Vec::with_capacity(3 * found.len());
-            let (mut distance, mut prim, mut g) = (Vec::new(), Vec::new(), Vec::new());
-            for c in found {
-                match c {
-                    Some(c) => {
-                        point.extend(c.point);
-                        distance.push(c.distance);
-                        prim.push(c.prim as i64);
-                        g.push(c.geometry as i64);
-                    }
-                    None => {
-                        point.extend([f64::NAN; 3]);
-                        distance.push(f64::INFINITY);
-                        prim.push(-1i64);
-                        g.push(-1i64);
-                    }
-                }
-            }
-            (point, distance, prim, g)
+            ClosestColumns::new(&found, |c| (c.point, c.distance, c.prim))
+                .and_geometry(&found, |c| c.geometry)
         });
-        let n = distance.len();
-        let point = PyArray1::from_vec(py, point).reshape([n, 3])?;
-        namedtuple(py, &SCENE_CLOSEST, "SceneClosest")?.call1((
-            point,
-            PyArray1::from_vec(py, distance),
-            PyArray1::from_vec(py, prim),
-            PyArray1::from_vec(py, g),
-        ))
+        namedtuple(py, &SCENE_CLOSEST, "SceneClosest")?.call1(columns.into_tuple(py)?)
     }
 
     /// Distance from each point to the nearest geometry, (N,) float64 (inf on an empty scene).
@@ -352,11 +303,9 @@ impl PyScene {
         py: Python<'py>,
         points: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let points = arrays::query_points(points)?;
         let built = self.built()?;
         let pool = pool_of(built.threads)?;
-        let d = py.detach(|| pool.install(|| built.tree.distance_batch(&points)));
-        Ok(PyArray1::from_vec(py, d))
+        per_point(py, points, &pool, |p| built.tree.distance_batch(p))
     }
 
     /// The distance, negative inside any geometry, (N,) float64; inside as for KdTree
@@ -369,11 +318,11 @@ impl PyScene {
         inside: &str,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let test = inside_arg(inside)?;
-        let points = arrays::query_points(points)?;
         let built = self.built()?;
         let pool = pool_of(built.threads)?;
-        let d = py.detach(|| pool.install(|| built.tree.signed_distance_batch(&points, test)));
-        Ok(PyArray1::from_vec(py, d))
+        per_point(py, points, &pool, |p| {
+            built.tree.signed_distance_batch(p, test)
+        })
     }
 
     /// Whether each point is inside any geometry, (N,) bool; inside as for signed_distance.
@@ -385,10 +334,8 @@ impl PyScene {
         inside: &str,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let test = inside_arg(inside)?;
-        let points = arrays::query_points(points)?;
         let built = self.built()?;
         let pool = pool_of(built.threads)?;
-        let c = py.detach(|| pool.install(|| built.tree.contains_batch(&points, test)));
-        Ok(PyArray1::from_vec(py, c))
+        per_point(py, points, &pool, |p| built.tree.contains_batch(p, test))
     }
 }
