@@ -95,12 +95,24 @@ fn quick_check_passes_every_part_and_writes_its_three_files() {
     let names: Vec<String> = parts(&results).into_iter().map(|p| p.0).collect();
     assert_eq!(
         names,
-        ["build", "loader", "adapter", "tests", BENCH_PARTS[0], BENCH_PARTS[1], BENCH_PARTS[2]]
+        [
+            "build",
+            "loader",
+            "adapter",
+            "tests",
+            BENCH_PARTS[0],
+            BENCH_PARTS[1],
+            BENCH_PARTS[2]
+        ]
     );
     for p in results["parts"].as_array().unwrap() {
         let (name, status) = (p["name"].as_str().unwrap(), p["status"].as_str().unwrap());
         // build and tests are skipped on request (--binary, --no-tests); the rest must pass.
-        let expected = if name == "build" || name == "tests" { "skipped" } else { "ok" };
+        let expected = if name == "build" || name == "tests" {
+            "skipped"
+        } else {
+            "ok"
+        };
         assert_eq!(status, expected, "{p}");
         assert!(p["seconds"].as_f64().is_some(), "{p}");
     }
@@ -137,12 +149,22 @@ fn bad_arguments_are_refused_with_one_clear_line() {
     for (args, says) in [
         (&[][..], "missing OUT_DIR"),
         (&["/tmp/unused", "--bogus"][..], "unknown option '--bogus'"),
-        (&["/tmp/unused", "--budget", "soon"][..], "--budget wants whole seconds"),
+        (
+            &["/tmp/unused", "--budget", "soon"][..],
+            "--budget wants whole seconds",
+        ),
         (&["/tmp/unused", "--binary"][..], "--binary needs a value"),
-        (&["/tmp/unused", "--part-limit", "nosuch=3"][..], "no part 'nosuch'"),
+        (
+            &["/tmp/unused", "--part-limit", "nosuch=3"][..],
+            "no part 'nosuch'",
+        ),
     ] {
         let out = gpu_check(args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");
-        assert!(text(&out.stderr).contains(says), "{args:?}: {}", text(&out.stderr));
+        assert!(
+            text(&out.stderr).contains(says),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
     }
 }
