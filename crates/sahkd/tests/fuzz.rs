@@ -13,7 +13,7 @@
 #[path = "common/fuzz.rs"]
 mod fuzz;
 
-use fuzz::{case_rng, check_outcome, measured, mutate, Counting};
+use fuzz::{case_rng, check_corpus, check_outcome, measured, mutate, Counting};
 use rand::rngs::StdRng;
 use rand::Rng;
 use sahkd::Mesh;
@@ -468,41 +468,15 @@ fn the_harness_catches_what_it_should() {
 #[test]
 fn corpus_inputs_read_as_recorded() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus");
-    let expected = std::fs::read_to_string(dir.join("expected.txt")).unwrap();
-    let mut listed = Vec::new();
-    for line in expected
-        .lines()
-        .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
-    {
-        let (name, outcome) = line
-            .split_once(": ")
-            .unwrap_or_else(|| panic!("bad line {line:?}"));
-        listed.push(name.to_string());
-        let path = dir.join(name);
-        let size = std::fs::metadata(&path)
-            .unwrap_or_else(|e| panic!("{name}: {e}"))
-            .len();
-        let (read, usage) = measured(|| Mesh::load(&path).map_err(|e| e.to_string()));
-        check_outcome(size as usize, &read, usage).unwrap_or_else(|e| panic!("{name}: {e}"));
-        match (read, outcome.strip_prefix("error: ")) {
-            (Err(e), Some(part)) => assert!(e.contains(part), "{name}: {e:?} lacks {part:?}"),
-            (Ok(mesh), None) => {
-                let got = format!(
-                    "ok {} vertices {} triangles",
-                    mesh.vertices.len(),
-                    mesh.triangles.len()
-                );
-                assert_eq!(got, outcome, "{name}");
-            }
-            (got, _) => panic!("{name}: expected {outcome:?}, got {got:?}"),
-        }
-    }
-    // Every file is listed, so none is kept without a check.
-    for entry in std::fs::read_dir(&dir).unwrap() {
-        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
-        assert!(
-            name == "expected.txt" || listed.contains(&name),
-            "{name} is in tests/corpus but not in expected.txt"
-        );
-    }
+    check_corpus(&dir, |path, size, _| {
+        let (read, usage) = measured(|| Mesh::load(path).map_err(|e| e.to_string()));
+        check_outcome(size, &read, usage).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        read.map(|mesh| {
+            format!(
+                "ok {} vertices {} triangles",
+                mesh.vertices.len(),
+                mesh.triangles.len()
+            )
+        })
+    });
 }

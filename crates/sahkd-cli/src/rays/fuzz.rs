@@ -176,40 +176,13 @@ fn fuzz_npy() {
 #[test]
 fn corpus_inputs_read_as_recorded() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus");
-    let expected = std::fs::read_to_string(dir.join("expected.txt")).unwrap();
-    let mut listed = Vec::new();
-    for line in expected
-        .lines()
-        .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
-    {
-        let (name, outcome) = line
-            .split_once(": ")
-            .unwrap_or_else(|| panic!("bad line {line:?}"));
-        listed.push(name.to_string());
-        let path = dir.join(name);
-        let len = std::fs::metadata(&path)
-            .unwrap_or_else(|e| panic!("{name}: {e}"))
-            .len();
-        both_readers(&path, len as usize).unwrap_or_else(|e| panic!("{name}: {e}"));
+    harness::check_corpus(&dir, |path, len, outcome| {
+        both_readers(path, len).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let got = if outcome.ends_with(" points") {
-            read_points(&path).map(|p| format!("ok {} points", p.len()))
+            read_points(path).map(|p| format!("ok {} points", p.len()))
         } else {
-            read(&path).map(|r| format!("ok {} rays", r.len()))
+            read(path).map(|r| format!("ok {} rays", r.len()))
         };
-        match (
-            got.map_err(|e| format!("{e:#}")),
-            outcome.strip_prefix("error: "),
-        ) {
-            (Err(e), Some(part)) => assert!(e.contains(part), "{name}: {e:?} lacks {part:?}"),
-            (Ok(got), None) => assert_eq!(got, outcome, "{name}"),
-            (got, _) => panic!("{name}: expected {outcome:?}, got {got:?}"),
-        }
-    }
-    for entry in std::fs::read_dir(&dir).unwrap() {
-        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
-        assert!(
-            name == "expected.txt" || listed.contains(&name),
-            "{name} is in tests/corpus but not in expected.txt"
-        );
-    }
+        got.map_err(|e| format!("{e:#}"))
+    });
 }

@@ -352,3 +352,44 @@ pub fn mutate(rng: &mut StdRng, bytes: &mut Vec<u8>, swaps: &[&str]) {
         }
     }
 }
+
+/// Checks every file of a regression corpus: `dir/expected.txt` lists `name: outcome` lines
+/// (`#` comments and blank lines aside); `read(path, size, outcome)` reads the file as its
+/// target does (the recorded outcome may say how, e.g. as points or as rays), giving `Ok(summary)` (compared with the outcome as written) or `Err(message)` (which
+/// must contain the part after an outcome's `error: `). A file of the folder that is not
+/// listed fails too, so none is kept without a check.
+pub fn check_corpus(
+    dir: &std::path::Path,
+    read: impl Fn(&std::path::Path, usize, &str) -> Result<String, String>,
+) {
+    let expected = std::fs::read_to_string(dir.join("expected.txt")).unwrap();
+    let mut listed = Vec::new();
+    for line in expected
+        .lines()
+        .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
+    {
+        let (name, outcome) = line
+            .split_once(": ")
+            .unwrap_or_else(|| panic!("bad line {line:?}"));
+        listed.push(name.to_string());
+        let path = dir.join(name);
+        let size = std::fs::metadata(&path)
+            .unwrap_or_else(|e| panic!("{name}: {e}"))
+            .len();
+        match (
+            read(&path, size as usize, outcome),
+            outcome.strip_prefix("error: "),
+        ) {
+            (Err(e), Some(part)) => assert!(e.contains(part), "{name}: {e:?} lacks {part:?}"),
+            (Ok(got), None) => assert_eq!(got, outcome, "{name}"),
+            (got, _) => panic!("{name}: expected {outcome:?}, got {got:?}"),
+        }
+    }
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+        assert!(
+            name == "expected.txt" || listed.contains(&name),
+            "{name} is in the corpus folder but not in expected.txt"
+        );
+    }
+}
