@@ -26,6 +26,34 @@ struct Bounds {
     hi: [f32; 3],
 }
 
+impl Bounds {
+    /// `None` for the empty box of a mesh without triangles.
+    fn of(b: &sahkd::Aabb) -> Option<Self> {
+        (!b.is_empty()).then_some(Bounds {
+            lo: b.lo.0,
+            hi: b.hi.0,
+        })
+    }
+
+    fn text(bounds: &Option<Self>) -> String {
+        match bounds {
+            Some(b) => format!("{} - {}", point(b.lo), point(b.hi)),
+            None => "empty".to_string(),
+        }
+    }
+}
+
+/// The rows every `info` table starts with: what was read and its size on disk.
+fn source_rows(t: &mut Table, what: &str, loaded: &Loaded) {
+    t.row(what, loaded.source.describe());
+    if let Some(bytes) = loaded.file_bytes {
+        t.row(
+            "file size",
+            format!("{} ({} bytes)", format::bytes(bytes), format::count(bytes)),
+        );
+    }
+}
+
 #[derive(Serialize)]
 struct Report {
     source: String,
@@ -87,10 +115,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         load_ms: loaded.load_ms,
         vertices: mesh.vertices.len(),
         triangles: mesh.triangles.len(),
-        bounds: (!bounds.is_empty()).then_some(Bounds {
-            lo: bounds.lo.0,
-            hi: bounds.hi.0,
-        }),
+        bounds: Bounds::of(&bounds),
         zero_area_triangles: mesh.zero_area_triangles(),
         unreferenced_vertices: unreferenced_vertices(mesh),
     };
@@ -98,23 +123,11 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         return format::print_json(&report);
     }
     let mut t = Table::default();
-    t.row("mesh", loaded.source.describe());
-    if let Some(bytes) = report.file_bytes {
-        t.row(
-            "file size",
-            format!("{} ({} bytes)", format::bytes(bytes), format::count(bytes)),
-        );
-    }
+    source_rows(&mut t, "mesh", &loaded);
     t.row("load time", format::ms(report.load_ms))
         .row("vertices", format::count(report.vertices as u64))
         .row("triangles", format::count(report.triangles as u64))
-        .row(
-            "bounds",
-            match &report.bounds {
-                Some(b) => format!("{} - {}", point(b.lo), point(b.hi)),
-                None => "empty".to_string(),
-            },
-        )
+        .row("bounds", Bounds::text(&report.bounds))
         .row(
             "zero-area triangles",
             format::count(report.zero_area_triangles as u64),
@@ -136,10 +149,7 @@ fn tree_info(loaded: &Loaded, tree: &KdTree, meta: &TreeMeta, json: bool) -> Res
         file_bytes: loaded.file_bytes,
         load_ms: loaded.load_ms,
         triangles: tree.triangles().len(),
-        bounds: (!b.is_empty()).then_some(Bounds {
-            lo: b.lo.0,
-            hi: b.hi.0,
-        }),
+        bounds: Bounds::of(&b),
         nodes: stats.nodes,
         leaves: stats.leaves,
         references: stats.references,
@@ -157,22 +167,10 @@ fn tree_info(loaded: &Loaded, tree: &KdTree, meta: &TreeMeta, json: bool) -> Res
         return format::print_json(&report);
     }
     let mut t = Table::default();
-    t.row("tree", loaded.source.describe());
-    if let Some(bytes) = report.file_bytes {
-        t.row(
-            "file size",
-            format!("{} ({} bytes)", format::bytes(bytes), format::count(bytes)),
-        );
-    }
+    source_rows(&mut t, "tree", loaded);
     t.row("open time", format::ms(report.load_ms))
         .row("triangles", format::count(report.triangles as u64))
-        .row(
-            "bounds",
-            match &report.bounds {
-                Some(b) => format!("{} - {}", point(b.lo), point(b.hi)),
-                None => "empty".to_string(),
-            },
-        )
+        .row("bounds", Bounds::text(&report.bounds))
         .row("nodes", format::count(report.nodes as u64))
         .row("leaves", format::count(report.leaves as u64))
         .row("references", format::count(report.references as u64))
