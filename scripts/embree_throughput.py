@@ -2,7 +2,7 @@
 """Embree 4 (through embreex's single-ray loop) on the rays the trace_throughput example dumped.
 
     cargo run --release -p sahkd --example trace_throughput -- MESH --camera near --dump DIR
-    python scripts/embree_throughput.py DIR [--threads 1,2] [--repeat 7]
+    python scripts/embree_throughput.py DIR [--threads 1,2] [--repeat 7] [--sahkd]
 
 Reads DIR/triangles.npy and DIR/sets.txt (lines `NAME closest|any`), and per set DIR/NAME.npy
 (rows ox oy oz dx dy dz t_min t_max; t_min is 0 in every set the example makes) and sahkd's
@@ -18,6 +18,11 @@ and copied them inside it, and passed no distances, which embreex then allocates
 With --threads N the rays are split into N contiguous parts traced by N processes at once,
 each with its own copy of the scene (embreex holds the GIL while it traces); the time of a
 repeat is from a common start to the last process finishing. Needs numpy and embreex only.
+
+With --sahkd, the same run also times sahkd's Python package on the same rays
+(`KdTree.intersect` / `occluded` on a tree of the triangles built with the defaults and
+`threads=N`, the arrays made once outside the timed region, so the door from Python is what is
+measured against the Rust example's batch calls) and checks its answers against the dumped ones.
 """
 
 import argparse
@@ -91,6 +96,28 @@ def run_parallel(triangles, rays, query, repeat, threads):
     return rates
 
 
+def sahkd_rates(triangles, rays, query, repeat, threads, theirs):
+    """Mrays/s of sahkd's Python calls on `rays`, and on how many rays they agree with the
+    example's answers (bit for bit: same t and triangle for closest hits)."""
+    import sahkd
+
+    tree = sahkd.KdTree(triangles.reshape(-1, 3), np.arange(3 * len(triangles)).reshape(-1, 3), threads=threads)
+    origins, directions = np.ascontiguousarray(rays[:, 0:3]), np.ascontiguousarray(rays[:, 3:6])
+    t_min, t_max = np.ascontiguousarray(rays[:, 6]), np.ascontiguousarray(rays[:, 7])
+    call = tree.intersect if query == "closest" else tree.occluded
+    answer = call(origins, directions, t_min, t_max)  # the first call makes the trace layout
+    if query == "closest":
+        agree = int(np.sum((answer.prim == theirs[:, 1].astype(np.int64)) & ((answer.t == theirs[:, 0]) | (answer.prim < 0))))
+    else:
+        agree = int(np.sum(answer == (theirs[:, 0] != 0)))
+    rates = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        call(origins, directions, t_min, t_max)
+        rates.append(len(rays) / (time.perf_counter() - start) / 1e6)
+    return rates, agree
+
+
 def summary(rates):
     rates = sorted(rates)
     return f"{rates[len(rates) // 2]:6.2f} Mrays/s median ({rates[0]:.2f}-{rates[-1]:.2f})"
@@ -101,6 +128,7 @@ def main(argv=None):
     p.add_argument("dir")
     p.add_argument("--threads", default="1,2", help="comma-separated process counts")
     p.add_argument("--repeat", type=int, default=7)
+    p.add_argument("--sahkd", action="store_true", help="also time sahkd's Python calls on the same rays")
     args = p.parse_args(argv)
     try:
         threads = [int(t) for t in args.threads.split(",")]
@@ -149,6 +177,12 @@ def main(argv=None):
                 f"{name:>7} ({query}): {len(rays):>8} rays, {100 * share:5.1f}% hit, {t} process(es), "
                 f"{summary(rates)}, agree with sahkd on {agree} of {len(rays)}"
             )
+            if args.sahkd:
+                rates, same = sahkd_rates(triangles, rays, query, args.repeat, t, theirs)
+                print(
+                    f"{'':>7} sahkd Python, {t} thread(s): {summary(rates)}, "
+                    f"same answer as the example on {same} of {len(rays)}"
+                )
 
 
 if __name__ == "__main__":

@@ -161,3 +161,38 @@ fn camera_and_shadow_batches_match_single_rays_on_the_bunny() {
         check_batches(&tree, &shadow, false).unwrap();
     }
 }
+
+/// Ambient-occlusion-like batches: runs of rays leaving one point in scattered directions,
+/// short and long. The batch calls sort each group of rays by direction octant before cutting
+/// it into packets, so lanes of one packet come from different points and different places
+/// in the batch; every answer must still be the brute-force one.
+#[test]
+fn scattered_rays_from_shared_origins_match_brute_force() {
+    let mut rng = rng(21);
+    let tris = random_triangles(&mut rng, 900);
+    let bounds = tris.iter().fold(sahkd::Aabb::EMPTY, |b, t| {
+        b.union(sahkd::geometry::triangle_bounds(t))
+    });
+    let mut rays = Vec::new();
+    for (i, base) in random_rays(&mut rng, &bounds, 120).iter().enumerate() {
+        // A point on the ray's path inside the box, then 1 to 11 rays from it.
+        let origin = base.at(base.t_min.max(0.0) + 0.3 * rng.random::<f32>());
+        for k in 0..(1 + i % 11) {
+            let d = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                if k % 5 == 0 {
+                    0.0
+                } else {
+                    rng.random_range(-1.0..1.0)
+                },
+            );
+            let reach = if k % 2 == 0 { 0.05 } else { f32::INFINITY };
+            rays.push(Ray::new(origin, d).with_range(0.0, reach));
+        }
+    }
+    let tree = build_triangles(tris, &BuildOptions::default())
+        .unwrap()
+        .tree;
+    check_batches(&tree, &rays, true).unwrap();
+}

@@ -293,10 +293,10 @@ impl KdTree {
     /// not depend on the number of threads.
     pub fn intersect_batch(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
         let mut out = vec![None; rays.len()];
-        out.par_chunks_mut(packet::WIDTH)
-            .zip(rays.par_chunks(packet::WIDTH))
-            .with_min_len(64)
-            .for_each(|(out, rays)| self.closest_chunk(rays, out));
+        out.par_chunks_mut(packet::GROUP)
+            .zip(rays.par_chunks(packet::GROUP))
+            .with_min_len(8)
+            .for_each(|(out, rays)| self.closest_group(rays, out));
         out
     }
 
@@ -305,10 +305,10 @@ impl KdTree {
     /// [`intersect_batch`](Self::intersect_batch).
     pub fn occluded_batch(&self, rays: &[Ray]) -> Vec<bool> {
         let mut out = vec![false; rays.len()];
-        out.par_chunks_mut(packet::WIDTH)
-            .zip(rays.par_chunks(packet::WIDTH))
-            .with_min_len(64)
-            .for_each(|(out, rays)| self.any_chunk(rays, out));
+        out.par_chunks_mut(packet::GROUP)
+            .zip(rays.par_chunks(packet::GROUP))
+            .with_min_len(8)
+            .for_each(|(out, rays)| self.any_group(rays, out));
         out
     }
 
@@ -317,10 +317,10 @@ impl KdTree {
     pub(crate) fn intersect_serial(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
         let mut out = vec![None; rays.len()];
         for (out, rays) in out
-            .chunks_mut(packet::WIDTH)
-            .zip(rays.chunks(packet::WIDTH))
+            .chunks_mut(packet::GROUP)
+            .zip(rays.chunks(packet::GROUP))
         {
-            self.closest_chunk(rays, out);
+            self.closest_group(rays, out);
         }
         out
     }
@@ -329,10 +329,10 @@ impl KdTree {
     pub(crate) fn occluded_serial(&self, rays: &[Ray]) -> Vec<bool> {
         let mut out = vec![false; rays.len()];
         for (out, rays) in out
-            .chunks_mut(packet::WIDTH)
-            .zip(rays.chunks(packet::WIDTH))
+            .chunks_mut(packet::GROUP)
+            .zip(rays.chunks(packet::GROUP))
         {
-            self.any_chunk(rays, out);
+            self.any_group(rays, out);
         }
         out
     }

@@ -13,7 +13,13 @@
 //! plane exactly as the single walk cuts it, and its leaves' triangles are tested as the single
 //! walk tests them (`visit_leaf`). The lanes' leaves therefore come in the same
 //! order with the same triangles and limits, and the answers are those of the single-ray
-//! queries, bit for bit. Packets with mixed signs are traced one ray at a time.
+//! queries, bit for bit.
+//!
+//! The batch calls hand out groups of [`GROUP`] neighbouring rays and sort each group by
+//! direction octant before cutting it into packets: camera and shadow rays mostly share one
+//! octant and keep their order, while rays scattered around a surface normal (ambient
+//! occlusion, bounces) would otherwise rarely fill a packet of one octant. What is left of an
+//! octant's run after its packets is traced one ray at a time.
 
 use super::{clip_to_box, visit_leaf, Hit, Ray, ShearedRay};
 use crate::cost::MAX_DEPTH_CAP;
@@ -23,6 +29,19 @@ use std::mem::MaybeUninit;
 
 /// Rays per packet in the batch calls.
 pub(super) const WIDTH: usize = 4;
+
+/// Rays per group: the batch calls hand out groups of neighbouring rays, and a group's rays
+/// are sorted by direction octant before they are cut into packets, so that rays of
+/// scattered directions (ambient occlusion, bounces) still find partners of their octant.
+pub(super) const GROUP: usize = 32;
+
+/// The signs of a ray's direction as 3 bits; packets need one octant.
+#[inline(always)]
+fn octant(r: &Ray) -> u8 {
+    (r.direction[0].is_sign_negative() as u8)
+        | (r.direction[1].is_sign_negative() as u8) << 1
+        | (r.direction[2].is_sign_negative() as u8) << 2
+}
 
 /// A pending far child of a packet: the lanes that go there and their intervals.
 #[derive(Clone, Copy)]
@@ -82,13 +101,8 @@ fn le<const N: usize>(a: &[f32; N], b: &[f32; N]) -> u32 {
 /// order serves the packet.
 #[inline(always)]
 pub(super) fn same_signs(rays: &[Ray]) -> bool {
-    let signs = |r: &Ray| {
-        (r.direction[0].is_sign_negative() as u32)
-            | (r.direction[1].is_sign_negative() as u32) << 1
-            | (r.direction[2].is_sign_negative() as u32) << 2
-    };
-    let first = signs(&rays[0]);
-    rays.iter().all(|r| signs(r) == first)
+    let first = octant(&rays[0]);
+    rays.iter().all(|r| octant(r) == first)
 }
 
 impl KdTree {
@@ -221,10 +235,56 @@ impl KdTree {
         }
     }
 
-    /// Closest hits of a chunk of at most [`WIDTH`] rays into `out`.
-    pub(super) fn closest_chunk(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        match <&[Ray; WIDTH]>::try_from(rays) {
-            Ok(packet) if same_signs(rays) => {
+    /// Answers of a group of at most [`GROUP`] rays into `out`: the rays are ordered by the
+    /// signs of their directions (stable, so coherent rays keep their neighbours), each run of
+    /// one octant is cut into packets of [`WIDTH`] walked by `packet`, and what is left of a
+    /// run is walked one ray at a time by `single`. Every ray gets its single-ray answer
+    /// whichever way it is walked, so the grouping changes nothing in the results.
+    #[inline(always)]
+    fn trace_group<T: Copy>(
+        &self,
+        rays: &[Ray],
+        out: &mut [T],
+        mut packet: impl FnMut(&[Ray; WIDTH]) -> [T; WIDTH],
+        mut single: impl FnMut(&Ray) -> T,
+    ) {
+        debug_assert!(rays.len() <= GROUP && rays.len() == out.len());
+        // Counting sort of the ray indices by octant.
+        let octants: [u8; GROUP] = std::array::from_fn(|i| rays.get(i).map_or(0, octant));
+        let mut starts = [0usize; 9];
+        for &o in &octants[..rays.len()] {
+            starts[o as usize + 1] += 1;
+        }
+        for k in 0..8 {
+            starts[k + 1] += starts[k];
+        }
+        let runs = starts;
+        let mut order = [0u8; GROUP];
+        for (i, &o) in octants[..rays.len()].iter().enumerate() {
+            order[starts[o as usize]] = i as u8;
+            starts[o as usize] += 1;
+        }
+        for k in 0..8 {
+            let run = &order[runs[k]..runs[k + 1]];
+            let mut packets = run.chunks_exact(WIDTH);
+            for lanes in &mut packets {
+                let answers = packet(&std::array::from_fn(|j| rays[lanes[j] as usize]));
+                for (j, &i) in lanes.iter().enumerate() {
+                    out[i as usize] = answers[j];
+                }
+            }
+            for &i in packets.remainder() {
+                out[i as usize] = single(&rays[i as usize]);
+            }
+        }
+    }
+
+    /// Closest hits of a group of at most [`GROUP`] rays into `out`.
+    pub(super) fn closest_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        self.trace_group(
+            rays,
+            out,
+            |packet| {
                 let mut best: [Option<Hit>; WIDTH] = [None; WIDTH];
                 self.walk_packet(packet, |i, hit, limit| {
                     if hit.better_than(&best[i]) {
@@ -233,34 +293,26 @@ impl KdTree {
                     }
                     false
                 });
-                for ((o, b), r) in out.iter_mut().zip(best).zip(rays) {
-                    *o = b.map(|h| self.finish(r, h));
-                }
-            }
-            _ => {
-                for (o, r) in out.iter_mut().zip(rays) {
-                    *o = self.intersect(r);
-                }
-            }
-        }
+                std::array::from_fn(|i| best[i].map(|h| self.finish(&packet[i], h)))
+            },
+            |ray| self.intersect(ray),
+        );
     }
 
-    /// Any-hit answers of a chunk of at most [`WIDTH`] rays into `out`.
-    pub(super) fn any_chunk(&self, rays: &[Ray], out: &mut [bool]) {
-        match <&[Ray; WIDTH]>::try_from(rays) {
-            Ok(packet) if same_signs(rays) => {
+    /// Any-hit answers of a group of at most [`GROUP`] rays into `out`.
+    pub(super) fn any_group(&self, rays: &[Ray], out: &mut [bool]) {
+        self.trace_group(
+            rays,
+            out,
+            |packet| {
                 let mut found = [false; WIDTH];
                 self.walk_packet(packet, |i, _, _| {
                     found[i] = true;
                     true
                 });
-                out.copy_from_slice(&found);
-            }
-            _ => {
-                for (o, r) in out.iter_mut().zip(rays) {
-                    *o = self.occluded(r);
-                }
-            }
-        }
+                found
+            },
+            |ray| self.occluded(ray),
+        );
     }
 }
