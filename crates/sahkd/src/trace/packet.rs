@@ -33,7 +33,7 @@ pub(super) const WIDTH: usize = 4;
 /// Rays per group: the batch calls hand out groups of neighbouring rays, and a group's rays
 /// are sorted by direction octant before they are cut into packets, so that rays of
 /// scattered directions (ambient occlusion, bounces) still find partners of their octant.
-pub(super) const GROUP: usize = 32;
+pub(super) const GROUP: usize = 64;
 
 /// The signs of a ray's direction as 3 bits; packets need one octant.
 #[inline(always)]
