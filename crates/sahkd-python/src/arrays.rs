@@ -94,7 +94,7 @@ fn for_each_row<T: Copy, E>(
 }
 
 /// A float32 or float64 `(n, 3)` array, borrowed read-only.
-enum Points<'py> {
+pub enum Points<'py> {
     F32(numpy::PyReadonlyArray2<'py, f32>),
     F64(numpy::PyReadonlyArray2<'py, f64>),
 }
@@ -234,13 +234,14 @@ pub fn triangles(vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>) -> PyRes
 }
 
 /// A ray parameter bound: one value for every ray, or one per ray.
-enum Bound1 {
+pub enum Bound1 {
     All(f64),
     PerRay(Vec<f64>),
 }
 
 impl Bound1 {
-    fn get(&self, i: usize) -> f64 {
+    #[inline(always)]
+    pub fn get(&self, i: usize) -> f64 {
         match self {
             Bound1::All(v) => *v,
             Bound1::PerRay(v) => v[i],
@@ -327,31 +328,51 @@ pub fn rays64(
     Ok(rays)
 }
 
-/// Rays from `(R, 3)` origins and directions and scalar or `(R,)` bounds. Non-finite origins,
-/// directions or bounds are errors; a zero direction or an empty range is a ray that hits
-/// nothing.
-pub fn rays(
-    origins: &Bound<'_, PyAny>,
-    directions: &Bound<'_, PyAny>,
-    t_min: &Bound<'_, PyAny>,
-    t_max: &Bound<'_, PyAny>,
-) -> PyResult<Vec<Ray>> {
-    let (o, n) = points(origins, "origins", "(R, 3)")?;
-    let (d, m) = points(directions, "directions", "(R, 3)")?;
+/// The arrays of a ray batch with their shapes and bounds checked (rows are checked where
+/// they are read): `(R, 3)` origins and directions, scalar or `(R,)` bounds.
+pub struct RayInput<'py> {
+    pub origins: Points<'py>,
+    pub directions: Points<'py>,
+    pub t_min: Bound1,
+    pub t_max: Bound1,
+    pub len: usize,
+}
+
+pub fn ray_input<'py>(
+    origins: &Bound<'py, PyAny>,
+    directions: &Bound<'py, PyAny>,
+    t_min: &Bound<'py, PyAny>,
+    t_max: &Bound<'py, PyAny>,
+) -> PyResult<RayInput<'py>> {
+    let (origins, n) = points(origins, "origins", "(R, 3)")?;
+    let (directions, m) = points(directions, "directions", "(R, 3)")?;
     if n != m {
         return Err(PyValueError::new_err(format!(
             "origins and directions must have the same number of rays, got {n} and {m}"
         )));
     }
-    let lo = ray_bound(t_min, "t_min", n, false)?;
-    let hi = ray_bound(t_max, "t_max", n, true)?;
+    Ok(RayInput {
+        origins,
+        directions,
+        t_min: ray_bound(t_min, "t_min", n, false)?,
+        t_max: ray_bound(t_max, "t_max", n, true)?,
+        len: n,
+    })
+}
+
+/// The rays of `input`. Non-finite origins, directions or bounds are errors naming the first
+/// bad row; a zero direction or an empty range is a ray that hits nothing.
+pub fn rays(input: &RayInput<'_>) -> PyResult<Vec<Ray>> {
+    let (lo, hi) = (&input.t_min, &input.t_max);
     // Straight into the rays, without a copy of either array on the way.
-    let mut rays = Vec::with_capacity(n);
-    visit_points(&o, "origins", |i, p| {
+    let mut rays = Vec::with_capacity(input.len);
+    visit_points(&input.origins, "origins", |i, p| {
         rays.push(
             Ray::new(Vec3(p), Vec3::splat(0.0)).with_range(lo.get(i) as f32, hi.get(i) as f32),
         )
     })?;
-    visit_points(&d, "directions", |i, p| rays[i].direction = Vec3(p))?;
+    visit_points(&input.directions, "directions", |i, p| {
+        rays[i].direction = Vec3(p)
+    })?;
     Ok(rays)
 }

@@ -52,6 +52,17 @@ impl<F: Element + Copy> HitColumns<F> {
         c
     }
 
+    /// Columns made elsewhere (`batch`), with the miss values above.
+    pub fn from_columns(t: Vec<F>, prim: Vec<i64>, u: Vec<F>, v: Vec<F>) -> Self {
+        HitColumns {
+            t,
+            prim,
+            u,
+            v,
+            geometry: None,
+        }
+    }
+
     /// Adds the geometry_id column of a scene's hits (-1 on a miss).
     pub fn and_geometry<H>(mut self, hits: &[Option<H>], geometry: impl Fn(&H) -> u32) -> Self {
         self.geometry = Some(

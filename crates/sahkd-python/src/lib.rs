@@ -7,6 +7,7 @@
 
 mod all_hits;
 mod arrays;
+mod batch;
 mod columns;
 mod options;
 mod pool;
@@ -178,15 +179,50 @@ fn ray_args(
     t_min: Option<&Bound<'_, PyAny>>,
     t_max: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Vec<Ray>> {
+    arrays::rays(&ray_input(origins, directions, t_min, t_max)?)
+}
+
+/// The checked arrays of a ray batch, with the default bounds [0, inf).
+fn ray_input<'py>(
+    origins: &Bound<'py, PyAny>,
+    directions: &Bound<'py, PyAny>,
+    t_min: Option<&Bound<'py, PyAny>>,
+    t_max: Option<&Bound<'py, PyAny>>,
+) -> PyResult<arrays::RayInput<'py>> {
     let py = origins.py();
     let zero = 0.0f64.into_pyobject(py)?.into_any();
     let inf = f64::INFINITY.into_pyobject(py)?.into_any();
-    arrays::rays(
+    arrays::ray_input(
         origins,
         directions,
         t_min.unwrap_or(&zero),
         t_max.unwrap_or(&inf),
     )
+}
+
+/// `batch::closest` or `batch::occluded` on the rays of `input` with the interpreter
+/// released; a row that is not finite is reported by the serial reader, which names it.
+fn traced<T: Send>(
+    py: Python<'_>,
+    input: &arrays::RayInput<'_>,
+    trace: impl FnOnce(&batch::RayArrays<'_>) -> Option<T> + Send,
+) -> PyResult<T> {
+    let arrays = batch::RayArrays {
+        origins: batch::PointView::of(&input.origins),
+        directions: batch::PointView::of(&input.directions),
+        t_min: &input.t_min,
+        t_max: &input.t_max,
+        len: input.len,
+    };
+    match py.detach(|| trace(&arrays)) {
+        Some(answers) => Ok(answers),
+        None => {
+            arrays::rays(input)?;
+            Err(PyRuntimeError::new_err(
+                "a ray was refused in the batch but not by the ray reader",
+            ))
+        }
+    }
 }
 
 /// The `precision=` argument of the ray queries: "f32" (the default) or "f64".
@@ -377,11 +413,8 @@ impl PyKdTree {
             });
             return hits.call1(columns.into_tuple(py)?);
         }
-        let rays = ray_args(origins, directions, t_min, t_max)?;
-        let columns = py.detach(|| {
-            let found = pool.install(|| self.tree.intersect_batch(&rays));
-            HitColumns::new(&found, f32::INFINITY, 0.0, |h| (h.t, h.prim, h.u, h.v))
-        });
+        let input = ray_input(origins, directions, t_min, t_max)?;
+        let columns = traced(py, &input, |rays| batch::closest(&self.tree, rays, &pool))?;
         hits.call1(columns.into_tuple(py)?)
     }
 
@@ -403,9 +436,9 @@ impl PyKdTree {
             let hit = py.detach(|| pool.install(|| self.tree.occluded_batch_f64(&rays)));
             return Ok(PyArray1::from_vec(py, hit));
         }
-        let rays = ray_args(origins, directions, t_min, t_max)?;
+        let input = ray_input(origins, directions, t_min, t_max)?;
         let pool = self.pool()?;
-        let hit = py.detach(|| pool.install(|| self.tree.occluded_batch(&rays)));
+        let hit = traced(py, &input, |rays| batch::occluded(&self.tree, rays, &pool))?;
         Ok(PyArray1::from_vec(py, hit))
     }
 

@@ -312,28 +312,43 @@ impl KdTree {
         out
     }
 
-    /// [`intersect_batch`](Self::intersect_batch) on the calling thread only, for callers
-    /// that already run in parallel (the renderer's tiles).
-    pub(crate) fn intersect_serial(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
-        let mut out = vec![None; rays.len()];
+    /// The answers of [`intersect_batch`](Self::intersect_batch) written into `out`, on the
+    /// calling thread only, for callers that already run in parallel (the renderer's tiles,
+    /// the Python door converting and tracing a group of rays per worker). `out` must be as
+    /// long as `rays`.
+    pub fn intersect_into(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        assert_eq!(rays.len(), out.len(), "one answer per ray");
         for (out, rays) in out
             .chunks_mut(packet::GROUP)
             .zip(rays.chunks(packet::GROUP))
         {
             self.closest_group(rays, out);
         }
-        out
     }
 
-    /// [`occluded_batch`](Self::occluded_batch) on the calling thread only.
-    pub(crate) fn occluded_serial(&self, rays: &[Ray]) -> Vec<bool> {
-        let mut out = vec![false; rays.len()];
+    /// The answers of [`occluded_batch`](Self::occluded_batch) written into `out`, on the
+    /// calling thread only, as [`intersect_into`](Self::intersect_into).
+    pub fn occluded_into(&self, rays: &[Ray], out: &mut [bool]) {
+        assert_eq!(rays.len(), out.len(), "one answer per ray");
         for (out, rays) in out
             .chunks_mut(packet::GROUP)
             .zip(rays.chunks(packet::GROUP))
         {
             self.any_group(rays, out);
         }
+    }
+
+    /// [`intersect_into`](Self::intersect_into) into a new vector.
+    pub(crate) fn intersect_serial(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
+        let mut out = vec![None; rays.len()];
+        self.intersect_into(rays, &mut out);
+        out
+    }
+
+    /// [`occluded_into`](Self::occluded_into) into a new vector.
+    pub(crate) fn occluded_serial(&self, rays: &[Ray]) -> Vec<bool> {
+        let mut out = vec![false; rays.len()];
+        self.occluded_into(rays, &mut out);
         out
     }
 

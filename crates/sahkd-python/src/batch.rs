@@ -1,0 +1,141 @@
+//! Ray batches from numpy straight into the tree's packet walk.
+//!
+//! Each worker of the tree's pool takes a block of rays, converts them from the caller's
+//! arrays into a buffer on its stack, traces them with the library's serial batch call (the
+//! same packets and answers as `intersect_batch`) and writes the answers into the result
+//! columns. No intermediate array of rays or of hits is made, and the conversion runs on every
+//! core with the interpreter released: this is what keeps the Python call at the speed of the
+//! Rust batch call. A row that is not finite stops the work; the serial reader
+//! (`arrays::rays`) then names the first bad row, as it always did.
+
+use numpy::ndarray::ArrayView2;
+use rayon::prelude::*;
+use rayon::ThreadPool;
+use sahkd::{Hit, KdTree, Ray, Vec3};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use crate::arrays::{Bound1, Points};
+use crate::columns::HitColumns;
+
+/// Rays converted and traced by one task.
+const BLOCK: usize = 256;
+
+/// A placeholder for the stack buffers, overwritten before use.
+const EMPTY: Ray = Ray {
+    origin: Vec3([0.0; 3]),
+    direction: Vec3([0.0; 3]),
+    t_min: 0.0,
+    t_max: 0.0,
+};
+
+/// An `(R, 3)` float32 or float64 array, viewed.
+#[derive(Clone, Copy)]
+pub enum PointView<'a> {
+    F32(ArrayView2<'a, f32>),
+    F64(ArrayView2<'a, f64>),
+}
+
+impl<'a> PointView<'a> {
+    pub fn of(points: &'a Points<'_>) -> Self {
+        match points {
+            Points::F32(a) => PointView::F32(a.as_array()),
+            Points::F64(a) => PointView::F64(a.as_array()),
+        }
+    }
+
+    /// Row `i` in float32, or None where it is not finite in float32 (the rule of
+    /// `arrays::rays`).
+    #[inline(always)]
+    fn get(&self, i: usize) -> Option<Vec3> {
+        let p = match self {
+            PointView::F32(a) => [a[[i, 0]], a[[i, 1]], a[[i, 2]]],
+            PointView::F64(a) => [a[[i, 0]] as f32, a[[i, 1]] as f32, a[[i, 2]] as f32],
+        };
+        p.iter().all(|c| c.is_finite()).then_some(Vec3(p))
+    }
+}
+
+/// The rays of a call: origins, directions and their checked bounds.
+pub struct RayArrays<'a> {
+    pub origins: PointView<'a>,
+    pub directions: PointView<'a>,
+    pub t_min: &'a Bound1,
+    pub t_max: &'a Bound1,
+    pub len: usize,
+}
+
+impl RayArrays<'_> {
+    /// Rays `start..start + out.len()` into `out`; false if one of them is not finite.
+    fn fill(&self, start: usize, out: &mut [Ray]) -> bool {
+        for (k, slot) in out.iter_mut().enumerate() {
+            let i = start + k;
+            match (self.origins.get(i), self.directions.get(i)) {
+                (Some(o), Some(d)) => {
+                    *slot = Ray::new(o, d)
+                        .with_range(self.t_min.get(i) as f32, self.t_max.get(i) as f32)
+                }
+                _ => return false,
+            }
+        }
+        true
+    }
+
+    /// Block `b` of the rays converted into `buf`, or None (and `bad` set) if one of its rows
+    /// is not finite or another block's was.
+    fn block<'b>(&self, b: usize, buf: &'b mut [Ray], bad: &AtomicBool) -> Option<&'b [Ray]> {
+        let start = b * BLOCK;
+        let buf = &mut buf[..BLOCK.min(self.len - start)];
+        if bad.load(Ordering::Relaxed) || !self.fill(start, buf) {
+            bad.store(true, Ordering::Relaxed);
+            return None;
+        }
+        Some(buf)
+    }
+}
+
+/// Closest hits of every ray as the Python columns (t, prim, u, v), or None if a row is not
+/// finite.
+pub fn closest(tree: &KdTree, rays: &RayArrays<'_>, pool: &ThreadPool) -> Option<HitColumns<f32>> {
+    let n = rays.len;
+    let (mut t, mut prim) = (vec![0f32; n], vec![0i64; n]);
+    let (mut u, mut v) = (vec![0f32; n], vec![0f32; n]);
+    let bad = AtomicBool::new(false);
+    pool.install(|| {
+        t.par_chunks_mut(BLOCK)
+            .zip(prim.par_chunks_mut(BLOCK))
+            .zip(u.par_chunks_mut(BLOCK))
+            .zip(v.par_chunks_mut(BLOCK))
+            .enumerate()
+            .for_each(|(b, (((t, prim), u), v))| {
+                let mut buf = [EMPTY; BLOCK];
+                let Some(block) = rays.block(b, &mut buf, &bad) else {
+                    return;
+                };
+                let mut hits = [None::<Hit>; BLOCK];
+                let hits = &mut hits[..block.len()];
+                tree.intersect_into(block, hits);
+                for (k, h) in hits.iter().enumerate() {
+                    (t[k], prim[k], u[k], v[k]) = match h {
+                        Some(h) => (h.t, h.prim as i64, h.u, h.v),
+                        None => (f32::INFINITY, -1, 0.0, 0.0),
+                    };
+                }
+            })
+    });
+    (!bad.into_inner()).then(|| HitColumns::from_columns(t, prim, u, v))
+}
+
+/// Whether each ray hits anything, or None if a row is not finite.
+pub fn occluded(tree: &KdTree, rays: &RayArrays<'_>, pool: &ThreadPool) -> Option<Vec<bool>> {
+    let mut out = vec![false; rays.len];
+    let bad = AtomicBool::new(false);
+    pool.install(|| {
+        out.par_chunks_mut(BLOCK).enumerate().for_each(|(b, out)| {
+            let mut buf = [EMPTY; BLOCK];
+            if let Some(block) = rays.block(b, &mut buf, &bad) {
+                tree.occluded_into(block, out);
+            }
+        })
+    });
+    (!bad.into_inner()).then_some(out)
+}
