@@ -51,6 +51,13 @@ pub struct BuilderArgs {
           default_value_t = default_options().median_large_node)]
     pub large_node: u32,
 
+    /// Sweep and hybrid builders: price nodes of more than 64 x N triangle references at the
+    /// N - 1 boundaries of N equal bins (min-max binning), the others exactly; 0 prices every
+    /// node exactly
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = parse_bins,
+          default_value_t = default_options().bins)]
+    pub bins: u32,
+
     /// Worker threads for building and tracing, at most 4 per core (64 on any machine)
     /// [default: all cores]
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = parse_threads)]
@@ -111,6 +118,7 @@ impl BuilderArgs {
                 max_duplication: self.max_duplication,
             },
             median_large_node: self.large_node,
+            bins: self.bins,
         }
     }
 
@@ -131,6 +139,9 @@ pub struct Builder {
 impl Builder {
     /// A pool of `options.threads` workers (`None`: every core, or RAYON_NUM_THREADS).
     pub fn new(mut options: BuildOptions) -> Result<Builder> {
+        // Before any input is read: what the value parsers cannot see (bins with a builder
+        // that has none) is refused here, by the library's rules.
+        options.validate()?;
         let pool = rayon::ThreadPoolBuilder::new()
             // 0 asks rayon for its default.
             .num_threads(options.threads.unwrap_or(0))
@@ -354,6 +365,24 @@ pub fn parse_threads(s: &str) -> Result<usize, String> {
     }
 }
 
+/// A number of bins, in the range the library's `BuildOptions::validate` allows.
+fn parse_bins(s: &str) -> Result<u32, String> {
+    let bins = s
+        .trim()
+        .parse::<u32>()
+        .map_err(|_| format!("expected 0 or a number of bins, found `{s}`"))?;
+    let options = BuildOptions {
+        algorithm: Algorithm::Sweep,
+        bins,
+        ..BuildOptions::default()
+    };
+    match options.validate() {
+        Ok(()) => Ok(bins),
+        Err(sahkd::build::BuildError::InvalidOptions(m)) => Err(m),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
 fn parse_finite(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(x) if x.is_finite() => Ok(x),
@@ -456,6 +485,7 @@ mod tests {
             "--max-depth=12",
             "--max-duplication=2",
             "--large-node=16",
+            "--bins=64",
         ])
         .unwrap();
         let expected = BuildOptions {
@@ -473,6 +503,7 @@ mod tests {
                 max_duplication: 2.0,
             },
             median_large_node: 16,
+            bins: 64,
         };
         assert_eq!(o, expected);
         assert_eq!(
@@ -497,6 +528,10 @@ mod tests {
             &["--max-depth", "deep"],
             &["--leaf-size", "-2"],
             &["--large-node", "-1"],
+            &["--bins", "1"],
+            &["--bins", "-4"],
+            &["--bins", "1025"],
+            &["--bins", "many"],
         ] {
             assert!(parse(bad).is_err(), "{bad:?} was accepted");
         }

@@ -99,6 +99,7 @@ const BUILD_KEYS: &[&str] = &[
     "bytes",
     "peak_working_bytes",
     "levels",
+    "bins",
 ];
 
 #[test]
@@ -171,6 +172,15 @@ fn build_options_reach_the_library() {
                 o.cost.leaf_size = 4;
             },
         ),
+        (&["--algorithm", "sweep", "--bins", "2"], |o| {
+            o.algorithm = sahkd::Algorithm::Sweep;
+            o.bins = 2;
+        }),
+        (&["--bins", "4", "--axes", "all", "--clip", "off"], |o| {
+            o.bins = 4;
+            o.axes = sahkd::Axes::All;
+            o.clip = false;
+        }),
         (&["--max-depth", "5", "--max-duplication", "1.5"], |o| {
             o.cost.max_depth = Some(5);
             o.cost.max_duplication = 1.5;
@@ -197,6 +207,7 @@ fn build_options_reach_the_library() {
             assert_eq!(report[key], name.as_str(), "{flags:?}");
         }
         assert_eq!(report["clip"], options.clip, "{flags:?}");
+        assert_eq!(report["bins"], options.bins, "{flags:?}");
         assert_eq!(report["nodes"], expected.nodes, "{flags:?}");
         assert_eq!(report["leaves"], expected.leaves, "{flags:?}");
         assert_eq!(report["empty_leaves"], expected.empty_leaves, "{flags:?}");
@@ -350,11 +361,47 @@ fn bad_option_values_are_usage_errors() {
         (&["build", "--max-depth", "deep"], "deep"),
         (&["build", "--max-duplication", "0.5"], "--max-duplication"),
         (&["build", "--no-such-flag"], "--no-such-flag"),
+        (&["build", "--bins", "1"], "from 2 to 1024"),
+        (&["build", "--bins", "1025"], "--bins"),
+        (&["build", "--bins", "-8"], "--bins"),
+        (
+            &["trace", SCENE, "--bins", "1", "--rays", "r.npy"],
+            "--bins",
+        ),
         (&["trace", SCENE, "--output", "x.npz"], "--rays"),
         (&["no-such-command"], "no-such-command"),
     ] {
         fails(args, 2, &[fragment]);
     }
+}
+
+/// Bins with a builder that has none: refused by the library's rules, before any input is
+/// read, on every command that builds.
+#[test]
+fn bins_with_other_builders_are_refused() {
+    for algorithm in ["level", "naive", "median"] {
+        fails(
+            &["build", SCENE, "--algorithm", algorithm, "--bins", "16"],
+            1,
+            &["bins", algorithm],
+        );
+    }
+    fails(
+        &[
+            "trace",
+            SCENE,
+            "--algorithm",
+            "level",
+            "--bins",
+            "16",
+            "--rays",
+            "no-such.npy",
+            "--output",
+            "never-written.npz",
+        ],
+        1,
+        &["bins", "level"],
+    );
 }
 
 // ---------------------------------------------------------------------------------------
@@ -522,6 +569,12 @@ fn trace_with_other_builder_options_matches_brute_force() {
         8,
         &["--algorithm", "sweep", "--axes", "all", "--clip", "off"],
     );
+}
+
+#[test]
+fn binned_trace_matches_brute_force() {
+    check_trace_matches_brute(8, &["--bins", "2", "--threads", "2"]);
+    check_trace_matches_brute(8, &["--algorithm", "sweep", "--bins", "3"]);
 }
 
 #[test]

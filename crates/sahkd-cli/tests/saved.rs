@@ -142,6 +142,7 @@ fn a_saved_tree_answers_exactly_as_the_mesh_built_fresh() {
         &[][..],
         &["--algorithm", "sweep", "--clip", "off", "--axes", "all"][..],
         &["--algorithm", "median", "--leaf-size", "3", "--kt", "2"][..],
+        &["--bins", "4", "--threads", "2"][..],
     ] {
         // No .sahkd extension: the file is told by its first bytes.
         let tree = d("tree.bin");
@@ -199,7 +200,7 @@ fn a_saved_tree_answers_exactly_as_the_mesh_built_fresh() {
             std::fs::read(Path::new(saved_png)).unwrap()
         );
         // The saved tree's options are reported, as if built again.
-        for key in ["algorithm", "axes", "clip", "nodes", "sah_cost"] {
+        for key in ["algorithm", "axes", "clip", "bins", "nodes", "sah_cost"] {
             assert_eq!(
                 saved_report["build"][key], fresh_report["build"][key],
                 "{key}"

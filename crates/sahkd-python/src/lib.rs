@@ -257,8 +257,8 @@ fn ray_args64(
 impl PyKdTree {
     #[new]
     #[pyo3(
-        signature = (vertices, faces, algorithm=None, axes=None, counting=None, clip=None, threads=None, **cost),
-        text_signature = "(vertices, faces, algorithm='level', axes=None, counting=None, clip=True, threads=None, **cost)"
+        signature = (vertices, faces, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost),
+        text_signature = "(vertices, faces, algorithm='level', axes=None, counting=None, clip=True, threads=None, bins=0, **cost)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -270,6 +270,7 @@ impl PyKdTree {
         counting: Option<&Bound<'_, PyAny>>,
         clip: Option<&Bound<'_, PyAny>>,
         threads: Option<&Bound<'_, PyAny>>,
+        bins: Option<&Bound<'_, PyAny>>,
         cost: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
         let threads = threads_arg(options::int_arg(threads, "threads")?)?;
@@ -280,6 +281,7 @@ impl PyKdTree {
             options::str_arg(counting, "counting")?.as_deref(),
             options::bool_arg(clip, "clip", true)?,
             threads,
+            options::int_arg(bins, "bins")?,
             cost,
         )?;
         let triangles = arrays::triangles(vertices, faces)?;
@@ -340,6 +342,7 @@ impl PyKdTree {
         d.set_item("axes", o.axes.name())?;
         d.set_item("counting", o.counting.name())?;
         d.set_item("clip", o.clip)?;
+        d.set_item("bins", o.bins)?;
         d.set_item("threads", self.meta.build_threads)?;
         Ok(d)
     }

@@ -94,6 +94,7 @@ pub fn build_options(
     counting: Option<&str>,
     clip: bool,
     threads: Option<usize>,
+    bins: Option<i64>,
     cost: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<BuildOptions> {
     let mut o = BuildOptions {
@@ -116,6 +117,19 @@ pub fn build_options(
     if let Some(kw) = cost {
         o.cost = cost_model(kw)?;
     }
+    if let Some(b) = bins {
+        o.bins = u32::try_from(b).map_err(|_| {
+            PyValueError::new_err(format!(
+                "bins must be 0 (exact SAH) or from 2 to {}, got {b}",
+                sahkd::MAX_BINS
+            ))
+        })?;
+    }
+    // The library's own rules (bins' range, and which builders take bins), named as it names them.
+    o.validate().map_err(|e| match e {
+        sahkd::build::BuildError::InvalidOptions(m) => PyValueError::new_err(m),
+        e => PyValueError::new_err(e.to_string()),
+    })?;
     Ok(o)
 }
 

@@ -168,8 +168,8 @@ impl PyScene {
 
     /// Builds the tree over every placed triangle; options as for KdTree.
     #[pyo3(
-        signature = (algorithm=None, axes=None, counting=None, clip=None, threads=None, **cost),
-        text_signature = "(self, algorithm='level', axes=None, counting=None, clip=True, threads=None, **cost)"
+        signature = (algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost),
+        text_signature = "(self, algorithm='level', axes=None, counting=None, clip=True, threads=None, bins=0, **cost)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn build(
@@ -180,6 +180,7 @@ impl PyScene {
         counting: Option<&Bound<'_, PyAny>>,
         clip: Option<&Bound<'_, PyAny>>,
         threads: Option<&Bound<'_, PyAny>>,
+        bins: Option<&Bound<'_, PyAny>>,
         cost: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<()> {
         let threads = threads_arg(options::int_arg(threads, "threads")?)?;
@@ -190,6 +191,7 @@ impl PyScene {
             options::str_arg(counting, "counting")?.as_deref(),
             options::bool_arg(clip, "clip", true)?,
             threads,
+            options::int_arg(bins, "bins")?,
             cost,
         )?;
         let pool = pool_of(threads)?;

@@ -71,6 +71,13 @@ def test_bad_meshes_are_refused_clearly(vertices, faces, error, message):
         (dict(max_depth=True), TypeError, r"max_depth must be an integer, not a bool"),
         (dict(max_duplication=0.5), ValueError, r"max_duplication must be a finite number of at least 1"),
         (dict(traversal="fast"), TypeError, r"traversal must be a number"),
+        (dict(algorithm="sweep", bins=1), ValueError, r"bins must be 0 \(exact SAH\) or from 2 to 1024, got 1$"),
+        (dict(algorithm="hybrid", bins=1025), ValueError, r"bins must be 0 .* got 1025"),
+        (dict(algorithm="sweep", bins=-4), ValueError, r"bins must be 0 .* got -4"),
+        (dict(bins=16), ValueError, r"bins works with the sweep and hybrid builders only, not level"),
+        (dict(algorithm="median", bins=16), ValueError, r"bins works with .* not median"),
+        (dict(algorithm="sweep", bins="16"), TypeError, r"bins must be an integer or None, got str"),
+        (dict(algorithm="sweep", bins=True), TypeError, r"bins must be an integer or None, not a bool"),
         (dict(travesal=10, colour=1), TypeError, r"unexpected keyword argument\(s\) 'travesal', 'colour'; the cost options are traversal, intersection"),
     ],
 )
@@ -87,6 +94,8 @@ def test_good_options_are_accepted():
     )  # fmt: skip
     assert tree.stats["counting"] == "space-tree" and tree.stats["algorithm"] == "sweep"
     assert tree.stats["clip"] is False and tree.stats["threads"] == 2
+    binned = sahkd.KdTree(V, F, algorithm="hybrid", bins=np.int64(64))
+    assert binned.stats["bins"] == 64 and binned.stats["algorithm"] == "hybrid"
 
 
 @pytest.mark.parametrize(

@@ -81,6 +81,9 @@ def test_every_query_matches_the_float64_oracle(vertex_dtype, face_dtype):
         dict(algorithm="median", axes="all"),
         dict(axes="all", counting="space-tree"),
         dict(threads=1, leaf_size=4, traversal=5.0, intersection=30.0),
+        # Binned above 128 and 256 references (332 triangles): the top levels are binned.
+        dict(algorithm="hybrid", bins=2, threads=2),
+        dict(algorithm="sweep", bins=4, axes="all", clip=False),
     ],
 )
 def test_tree_answers_equal_brute_force_exactly(options):
@@ -208,7 +211,7 @@ def test_stats_report_the_tree_and_its_options():
     assert set(s) == {
         "triangles", "nodes", "leaves", "empty_leaves", "references", "duplication",
         "max_depth", "mean_leaf_size", "sah_cost", "bytes", "build_ms", "presort_ms",
-        "algorithm", "axes", "counting", "clip", "threads",
+        "algorithm", "axes", "counting", "clip", "threads", "bins",
     }  # fmt: skip
     nodes, refs = tree._structure()
     leaf = (nodes[:, 1] & 3) == 3
@@ -218,6 +221,7 @@ def test_stats_report_the_tree_and_its_options():
     assert s["empty_leaves"] == ((nodes[leaf, 1] >> 2) == 0).sum()
     assert s["duplication"] == pytest.approx(len(refs) / 120)
     assert (s["algorithm"], s["axes"], s["counting"], s["clip"], s["threads"]) == ("sweep", "all", "scan", False, 1)
+    assert s["bins"] == 0
     assert s["build_ms"] >= 0 and s["sah_cost"] > 0
     np.testing.assert_array_equal(tree.bounds, [vertices.min(0), vertices.max(0)])
     np.testing.assert_array_equal(tree.triangles, vertices[faces])

@@ -288,6 +288,12 @@ def test_bad_input_is_refused_clearly():
     i = scene.add_instance(c, np.eye(4))
     scene.build()
     scene.intersect(o, d)
+    with pytest.raises(ValueError, match=r"bins works with the sweep and hybrid builders only, not level"):
+        scene.build(bins=16)
+    with pytest.raises(ValueError, match=r"bins must be 0 .* got 1"):
+        scene.build(algorithm="hybrid", bins=1)
+    scene.build(algorithm="hybrid", bins=2)
+    scene.intersect(o, d)
     bad_transforms = [
         (affine(np.diag([np.nan, 1, 1]), [0, 0, 0]), r"transform: entry \[0\]\[0\] is NaN"),
         (affine(np.eye(3), [np.inf, 0, 0]), r"entry \[0\]\[3\] is inf"),

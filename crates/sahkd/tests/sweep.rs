@@ -9,7 +9,7 @@ use sahkd::geometry::triangle_bounds;
 use sahkd::trace::brute;
 use sahkd::{
     build_triangles, Aabb, Algorithm, Axes, BuildOptions, CostModel, KdTree, Node, Ray, Triangle,
-    Vec3,
+    Vec3, BINNED_REFS_PER_BIN,
 };
 use std::path::PathBuf;
 
@@ -205,21 +205,33 @@ struct RefSplit {
     n_right: u32,
 }
 
-/// The best split of a node holding `items` (triangle index, box), by direct counting.
+/// The best split of a node holding `items` (triangle index, box), by direct counting. With
+/// `bins` (not 0) and more than `BINNED_REFS_PER_BIN * bins` items, the candidates are the
+/// documented bin boundaries `lo + (hi - lo) * (i / bins)` instead of the boxes' ends.
 fn reference_best_split(
     items: &[(u32, Aabb)],
     node: &Aabb,
     axes: Axes,
+    bins: u32,
     cost: &CostModel,
 ) -> Option<RefSplit> {
     let axis_list = match axes {
         Axes::All => vec![0, 1, 2],
         Axes::Longest => vec![node.longest_axis()],
     };
+    let binned = bins != 0 && items.len() > BINNED_REFS_PER_BIN * bins as usize;
     let mut best: Option<RefSplit> = None;
     for a in axis_list {
-        for (_, b) in items {
-            for p in [b.lo[a], b.hi[a]] {
+        let candidates: Vec<f32> = if binned {
+            let (lo, hi) = (node.lo[a], node.hi[a]);
+            (1..bins)
+                .map(|i| lo + (hi - lo) * (i as f32 / bins as f32))
+                .collect()
+        } else {
+            items.iter().flat_map(|(_, b)| [b.lo[a], b.hi[a]]).collect()
+        };
+        {
+            for p in candidates {
                 if !(p > node.lo[a] && p < node.hi[a]) {
                     continue;
                 }
@@ -274,7 +286,9 @@ impl ReferenceBuilder<'_> {
         let n = items.len() as u32;
         let mut split = None;
         if n > cost.leaf_size && depth < self.max_depth {
-            if let Some(s) = reference_best_split(&items, &bounds, self.opts.axes, &cost) {
+            if let Some(s) =
+                reference_best_split(&items, &bounds, self.opts.axes, self.opts.bins, &cost)
+            {
                 if s.cost < cost.leaf_cost(n) {
                     if self.references + (s.n_left + s.n_right - n) as usize <= self.budget {
                         split = Some(s);
@@ -381,7 +395,7 @@ fn root_split_is_the_brute_force_optimum() {
                 .map(|(i, t)| (i as u32, triangle_bounds(t)))
                 .collect();
             let bounds = items.iter().fold(Aabb::EMPTY, |b, (_, x)| b.union(*x));
-            let want = reference_best_split(&items, &bounds, opts.axes, &opts.cost)
+            let want = reference_best_split(&items, &bounds, opts.axes, 0, &opts.cost)
                 .filter(|s| s.cost < opts.cost.leaf_cost(tris.len() as u32));
             let tree = sweep(&tris, &opts);
             let root = tree.nodes()[0];
@@ -487,6 +501,68 @@ fn reference_budget_stops_splitting_as_the_reference_does() {
         let tree = sweep(&tris, &opts);
         assert!(tree.refs().len() <= opts.cost.reference_budget(tris.len()));
         tree.validate().unwrap();
+    }
+    assert!(
+        refused > 0,
+        "the budget never bound: the test tests nothing"
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// Binning (`bins`): the reference prices the documented boundaries above the threshold
+
+#[test]
+fn binned_trees_equal_the_reference_builder() {
+    let mut rng = Rng(6);
+    for round in 0..6 {
+        let n = 300 + rng.below(500) as usize;
+        let tris = mixed_scene(&mut rng, n);
+        // Thresholds of 128, 192 and 256 references: several binned levels, then the sweep.
+        for bins in [2, 3, 4] {
+            for mut opts in all_option_sets() {
+                opts.bins = bins;
+                let what = format!("round {round}, {n} triangles, {bins} bins");
+                assert_same_as_reference(&tris, &opts, &what);
+                // The hybrid builds the binned nodes' children at once: the same tree.
+                opts.algorithm = Algorithm::Hybrid;
+                opts.threads = Some(3);
+                let (want, _) = reference_tree(&tris, &opts);
+                let got = sweep(&tris, &opts);
+                assert_eq!(got.first_difference(&want), None, "{what}, hybrid");
+                assert_eq!(got.nodes(), want.nodes(), "{what}, hybrid");
+            }
+        }
+    }
+}
+
+#[test]
+fn binned_builds_keep_the_reference_budget_as_the_reference_does() {
+    // Slivers as above, and two clusters of small triangles in opposite corners that make
+    // the splits worth their cost even where only a few boundaries are priced.
+    let mut rng = Rng(7);
+    let mut tris = Vec::new();
+    for _ in 0..500 {
+        let a = rng.point(0.0, 1.0);
+        let b = rng.point(0.0, 1.0);
+        let along = (b - a) * 3.0;
+        tris.push([a - along, b + along, a - along + rng.point(-0.01, 0.01)]);
+    }
+    for k in 0..800 {
+        let c = rng.point(0.0, 0.2) + Vec3::splat(if k % 2 == 0 { 0.0 } else { 0.8 });
+        tris.push([c, c + rng.point(0.0, 0.02), c + rng.point(0.0, 0.02)]);
+    }
+    let mut refused = 0;
+    for mut opts in all_option_sets() {
+        opts.cost.max_duplication = 1.0;
+        opts.bins = 2;
+        refused += assert_same_as_reference(&tris, &opts, "binned slivers");
+        // In parallel the budget binds, so the hybrid builds depth first: the same tree.
+        opts.algorithm = Algorithm::Hybrid;
+        opts.threads = Some(2);
+        let got = sweep(&tris, &opts);
+        let (want, _) = reference_tree(&tris, &opts);
+        assert_eq!(got.first_difference(&want), None, "binned slivers, hybrid");
+        assert!(got.refs().len() <= opts.cost.reference_budget(tris.len()));
     }
     assert!(
         refused > 0,

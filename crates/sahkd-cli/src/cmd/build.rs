@@ -14,7 +14,7 @@ use crate::progress::Progress;
 use crate::resident::PeakResident;
 use anyhow::{bail, Context as _, Result};
 use sahkd::build::LevelReport;
-use sahkd::{Axes, TreeMeta};
+use sahkd::{Axes, TreeMeta, BINNED_REFS_PER_BIN};
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -54,6 +54,8 @@ pub struct Report<'a> {
     axes: &'static str,
     counting: &'static str,
     clip: bool,
+    /// Bins of the binned SAH for big nodes; 0: exact SAH everywhere.
+    bins: u32,
     threads: usize,
     load_ms: f64,
     build_ms: f64,
@@ -207,6 +209,7 @@ impl Built {
             axes: axes_name(options.axes),
             counting: counting_name(options.counting),
             clip: options.clip,
+            bins: options.bins,
             threads: builder.threads(),
             load_ms: self.loaded.load_ms,
             build_ms: report.build_ms,
@@ -246,7 +249,7 @@ impl Built {
             .row(
                 "builder",
                 format!(
-                    "{}, {}, {} counting, clip {}, {} threads",
+                    "{}, {}, {} counting, clip {}{}, {} threads",
                     algorithm_name(options.algorithm),
                     match options.axes {
                         Axes::Longest => "longest axis",
@@ -254,6 +257,13 @@ impl Built {
                     },
                     counting_name(options.counting),
                     switch_name(options.clip),
+                    match options.bins {
+                        0 => String::new(),
+                        n => format!(
+                            ", {n} bins above {} references",
+                            n as usize * BINNED_REFS_PER_BIN
+                        ),
+                    },
                     builder.threads()
                 ),
             )

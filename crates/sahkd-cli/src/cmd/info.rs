@@ -90,6 +90,8 @@ struct TreeReport {
     axes: &'static str,
     counting: &'static str,
     clip: bool,
+    /// Bins of the binned SAH for big nodes; 0: exact.
+    bins: u32,
     /// How the saved tree's build went.
     build_ms: f64,
     presort_ms: f64,
@@ -159,6 +161,7 @@ fn tree_info(loaded: &Loaded, tree: &KdTree, meta: &TreeMeta, json: bool) -> Res
         axes: axes_name(o.axes),
         counting: counting_name(o.counting),
         clip: o.clip,
+        bins: o.bins,
         build_ms: meta.build_ms,
         presort_ms: meta.presort_ms,
         build_threads: meta.build_threads,
@@ -179,11 +182,15 @@ fn tree_info(loaded: &Loaded, tree: &KdTree, meta: &TreeMeta, json: bool) -> Res
         .row(
             "built by",
             format!(
-                "{}, {} axes, {} counting, clip {}, {} threads, in {}",
+                "{}, {} axes, {} counting, clip {}{}, {} threads, in {}",
                 report.algorithm,
                 report.axes,
                 report.counting,
                 if report.clip { "on" } else { "off" },
+                match report.bins {
+                    0 => String::new(),
+                    n => format!(", {n} bins"),
+                },
                 report.build_threads,
                 format::ms(report.build_ms)
             ),

@@ -67,7 +67,28 @@ pub struct BuildOptions {
     /// Median builder only: nodes with more primitives than this are "large" (empty-space
     /// cut or spatial median split); the others get exact SAH.
     pub median_large_node: u32,
+    /// Sweep and hybrid builders: 0 (the default) prices every candidate exactly; `N` (2 to
+    /// [`MAX_BINS`]) prices only the `N - 1` bin boundaries of nodes holding more than
+    /// [`BINNED_REFS_PER_BIN`]` * N` references (min-max binning), and exactly below that.
+    /// Left out of saved options when 0, so that exact trees save as before.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub bins: u32,
 }
+
+fn is_zero(x: &u32) -> bool {
+    *x == 0
+}
+
+/// The most bins `BuildOptions::bins` takes. Beyond it the binned threshold
+/// (`BINNED_REFS_PER_BIN * bins`, 65,536 here) leaves only the very top of a tree to the
+/// binning, and the exact sweep does better there.
+pub const MAX_BINS: u32 = 1024;
+
+/// A node is binned when it holds more than this many references per bin: then each bin
+/// holds many references' ends on average, so the cost between two boundaries varies little
+/// and the best boundary prices close to the best exact plane, while below it the exact sweep
+/// is cheap anyway (at 64 bins: binned above 4,096 references).
+pub const BINNED_REFS_PER_BIN: usize = 64;
 
 impl Default for BuildOptions {
     fn default() -> Self {
@@ -79,6 +100,7 @@ impl Default for BuildOptions {
             threads: None,
             cost: CostModel::default(),
             median_large_node: 64,
+            bins: 0,
         }
     }
 }
@@ -189,6 +211,20 @@ impl BuildOptions {
         if self.threads == Some(0) {
             return bad("threads must be at least 1".into());
         }
+        if self.bins != 0 {
+            if self.bins == 1 || self.bins > MAX_BINS {
+                return bad(format!(
+                    "bins must be 0 (exact SAH) or from 2 to {MAX_BINS}, got {}",
+                    self.bins
+                ));
+            }
+            if !matches!(self.algorithm, Algorithm::Sweep | Algorithm::Hybrid) {
+                return bad(format!(
+                    "bins works with the sweep and hybrid builders only, not {} (use bins 0)",
+                    self.algorithm
+                ));
+            }
+        }
         Ok(())
     }
 }
@@ -274,6 +310,28 @@ mod tests {
                     ..BuildOptions::default()
                 },
                 "threads",
+            ),
+            (
+                BuildOptions {
+                    bins: 1,
+                    ..BuildOptions::default()
+                },
+                "bins",
+            ),
+            (
+                BuildOptions {
+                    bins: MAX_BINS + 1,
+                    ..BuildOptions::default()
+                },
+                "bins",
+            ),
+            (
+                BuildOptions {
+                    algorithm: Algorithm::Level,
+                    bins: 16,
+                    ..BuildOptions::default()
+                },
+                "bins",
             ),
         ] {
             let err = options.validate().unwrap_err().to_string();

@@ -252,6 +252,22 @@ pub fn all_variants() -> Vec<BuildOptions> {
                 ..BuildOptions::default()
             });
         }
+        // Binning with few bins, so that small scenes have binned nodes (above 128 and 256
+        // references).
+        out.push(BuildOptions {
+            algorithm: Algorithm::Sweep,
+            clip,
+            bins: 2,
+            ..BuildOptions::default()
+        });
+        out.push(BuildOptions {
+            algorithm: Algorithm::Hybrid,
+            axes: Axes::All,
+            clip,
+            bins: 4,
+            threads: Some(3),
+            ..BuildOptions::default()
+        });
         // Large nodes down to 4 primitives: the median phase meets small scenes' corner cases.
         out.push(BuildOptions {
             algorithm: Algorithm::Median,
@@ -269,8 +285,12 @@ pub fn describe(o: &BuildOptions) -> String {
         Algorithm::Median => format!(" large_node={}", o.median_large_node),
         _ => String::new(),
     };
+    let bins = match o.bins {
+        0 => String::new(),
+        n => format!(" bins={n}"),
+    };
     format!(
-        "{:?} axes={:?} counting={:?} clip={}{large}",
+        "{:?} axes={:?} counting={:?} clip={}{large}{bins}",
         o.algorithm, o.axes, o.counting, o.clip
     )
 }

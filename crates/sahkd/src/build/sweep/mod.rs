@@ -6,10 +6,14 @@
 //! re-clipped and merged in ([`partition`]). Nodes are built depth first from an explicit
 //! stack, left child before right, both children's slots allocated together.
 //!
+//! With `BuildOptions::bins`, nodes above a size threshold are priced at bin boundaries
+//! instead ([`binned`]), and the sweep runs below it.
+//!
 //! [`build_subtree`] builds below any node, not only the root: the median builder hands it
 //! its small nodes. [`build_subtree_sorted`] starts from events already sorted elsewhere (the
 //! hybrid builder hands over the level builder's lists, which use the same encoding).
 
+mod binned;
 mod events;
 mod partition;
 mod search;
@@ -33,6 +37,9 @@ struct Pending {
 }
 
 pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
+    if options.bins != 0 {
+        return binned::build(prims, options, false);
+    }
     let total_prims = prims.triangles.len();
     let subtree = Subtree {
         triangles: prims.triangles,
@@ -53,6 +60,12 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
     built.report.presort_ms = report.presort_ms;
     built.report.peak_working_bytes = report.peak_working_bytes;
     built
+}
+
+/// The tree of [`build`] with `options.bins` set (not 0), the children of every binned node
+/// built at once: the same tree on any number of threads.
+pub(crate) fn build_binned_parallel(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
+    binned::build(prims, options, true)
 }
 
 /// A node to build the whole subtree of, with the limits that come from the whole tree.

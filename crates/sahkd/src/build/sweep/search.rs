@@ -28,7 +28,7 @@ pub(super) struct Split {
 impl Split {
     /// Whether this split is chosen over the best so far, by the builders' one order.
     #[inline]
-    fn beats(&self, other: &Option<Split>) -> bool {
+    pub(super) fn beats(&self, other: &Option<Split>) -> bool {
         match other {
             None => self.cost.is_finite(),
             Some(o) => self.ranked().precedes(o.ranked()),
@@ -111,34 +111,49 @@ fn sweep_axis<const AXIS: usize>(
         let starts = (i - group_start) as u32 - ends - planar;
         above -= ends + planar;
         if key > lo_key && key < hi_key {
-            let pos = unordered(key);
-            let candidate = if planar == 0 {
-                Split {
-                    axis,
-                    pos,
-                    cost: cost.split_cost(node, axis, pos, below, above),
-                    planar_left: true,
-                    n_left: below,
-                    n_right: above,
-                }
-            } else {
-                let left = cost.split_cost(node, axis, pos, below + planar, above);
-                let right = cost.split_cost(node, axis, pos, below, above + planar);
-                let planar_left = left <= right;
-                Split {
-                    axis,
-                    pos,
-                    cost: if planar_left { left } else { right },
-                    planar_left,
-                    n_left: below + if planar_left { planar } else { 0 },
-                    n_right: above + if planar_left { 0 } else { planar },
-                }
-            };
+            let candidate = priced(node, axis, unordered(key), below, above, planar, cost);
             if candidate.beats(best) {
                 *best = Some(candidate);
             }
         }
         below += starts + planar;
+    }
+}
+
+/// The plane at `pos` with `below` primitives starting left of it, `above` ending right of
+/// it and `planar` lying in it, priced with the planar ones on the cheaper side (the left on
+/// a tie): the one pricing of the exact and the binned searches.
+#[inline(always)]
+pub(super) fn priced(
+    node: &Aabb,
+    axis: usize,
+    pos: f32,
+    below: u32,
+    above: u32,
+    planar: u32,
+    cost: &CostModel,
+) -> Split {
+    if planar == 0 {
+        Split {
+            axis,
+            pos,
+            cost: cost.split_cost(node, axis, pos, below, above),
+            planar_left: true,
+            n_left: below,
+            n_right: above,
+        }
+    } else {
+        let left = cost.split_cost(node, axis, pos, below + planar, above);
+        let right = cost.split_cost(node, axis, pos, below, above + planar);
+        let planar_left = left <= right;
+        Split {
+            axis,
+            pos,
+            cost: if planar_left { left } else { right },
+            planar_left,
+            n_left: below + if planar_left { planar } else { 0 },
+            n_right: above + if planar_left { 0 } else { planar },
+        }
     }
 }
 

@@ -1,0 +1,542 @@
+//! Min-max binning for big nodes (`BuildOptions::bins`), as Shevtsov, Soupikov & Kapustin
+//! (2007) and Mitsuba's kd-tree do: a node holding more than `BINNED_REFS_PER_BIN * bins`
+//! references is priced at the `bins - 1` boundaries of equal bins of its box only, with the
+//! counts from two histograms (of its references' lo and hi ends); smaller nodes get the
+//! exact sweep, unchanged.
+//!
+//! Counts and pricing follow the exact sweep's rules to the letter (`L = #(lo < p)`,
+//! `R = #(hi > p)`, the primitives lying in the plane to the cheaper side, the one cost model
+//! and ranking), so a binned split is the exact search restricted to the boundaries. Big
+//! nodes keep their references as (triangle, box) arrays split by one pass each, with no
+//! event lists and no sort: the events are made and sorted per node once it is small enough
+//! for the sweep, which sorts `n log(threshold)` instead of `n log n` at the root.
+//!
+//! The tree is the one a depth-first build makes (the sweep's layout and reference budget);
+//! [`build`] runs it so on one worker, or with the two children of every binned node built
+//! at once, which gives the same tree (see there).
+
+use super::search::{priced, Split};
+use super::{build_subtree, Subtree};
+use crate::build::options::BINNED_REFS_PER_BIN;
+use crate::build::stitch::{self, Piece};
+use crate::build::{Axes, BuildOptions, BuiltTree, Primitives};
+use crate::clip::clipped_bounds;
+use crate::cost::CostModel;
+use crate::geometry::{Aabb, Triangle};
+use crate::tree::Node;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Nodes with more references than this get their histograms from parallel chunks (when
+/// building in parallel): the top nodes, where there are too few nodes to keep the workers busy.
+const PARALLEL_HISTOGRAM: usize = 1 << 16;
+
+/// The references a node of the binned part holds: triangle indices (increasing) and the
+/// boxes the sweep would hold for them (clipped to the node on the way down when clipping).
+struct Refs {
+    ids: Vec<u32>,
+    boxes: Vec<Aabb>,
+    bounds: Aabb,
+    depth: u32,
+}
+
+/// The binned part of the tree, laid out at the end in the sweep's order.
+enum Top {
+    Leaf(Vec<u32>),
+    Split {
+        axis: usize,
+        pos: f32,
+        children: Box<[Top; 2]>,
+    },
+    /// A node small enough for the exact sweep, with its subtree.
+    Exact(Piece),
+}
+
+/// What a part of the build took, summed up the tree.
+#[derive(Default)]
+struct Tally {
+    budget_bound: bool,
+    clipped_away: usize,
+    presort_ms: f64,
+    peak_working_bytes: usize,
+}
+
+impl Tally {
+    fn add(mut self, other: Tally) -> Tally {
+        self.budget_bound |= other.budget_bound;
+        self.clipped_away += other.clipped_away;
+        self.presort_ms += other.presort_ms;
+        self.peak_working_bytes = self.peak_working_bytes.max(other.peak_working_bytes);
+        self
+    }
+}
+
+struct Ctx<'a> {
+    triangles: &'a [Triangle],
+    options: &'a BuildOptions,
+    threshold: usize,
+    max_depth: u32,
+    budget: usize,
+    /// Children of a binned node built at once, the budget kept as a shared guard.
+    parallel: bool,
+}
+
+/// Builds with binning above the threshold, the exact sweep below. On one worker (or with
+/// `parallel` false) it is the depth-first build with the sweep's running reference total;
+/// otherwise the two children of each binned node are built at once, the budget checked
+/// against one shared total as the hybrid does, and when that refused nothing and the
+/// references (plus those clipping removed) fit the budget, the depth-first build could not
+/// have refused a split either: the same tree. Else the tree is built depth first.
+pub(crate) fn build(prims: &Primitives, options: &BuildOptions, parallel: bool) -> BuiltTree {
+    let n = prims.triangles.len();
+    let ctx = Ctx {
+        triangles: prims.triangles,
+        options,
+        threshold: BINNED_REFS_PER_BIN * options.bins as usize,
+        max_depth: options.cost.max_depth_for(n),
+        budget: options.cost.reference_budget(n),
+        parallel: parallel && rayon::current_num_threads() > 1,
+    };
+    let built = run(&ctx, prims);
+    match built {
+        Some(tree) => tree,
+        None => run(
+            &Ctx {
+                parallel: false,
+                ..ctx
+            },
+            prims,
+        )
+        .expect("the depth-first build always finishes"),
+    }
+}
+
+/// The build, or `None` when built in parallel and the budget may have decided differently.
+fn run(ctx: &Ctx, prims: &Primitives) -> Option<BuiltTree> {
+    let root = Refs {
+        ids: (0..prims.triangles.len() as u32).collect(),
+        boxes: prims.boxes.clone(),
+        bounds: prims.bounds,
+        depth: 0,
+    };
+    let root_bytes = root.ids.len() * (4 + std::mem::size_of::<Aabb>());
+    let total = AtomicUsize::new(prims.triangles.len());
+    let (top, tally) = grow(ctx, root, &total);
+    let mut built = BuiltTree::default();
+    built.nodes.push(Node::leaf(0, 0));
+    lay_out(top, &mut built, 0);
+    if ctx.parallel && (tally.budget_bound || built.refs.len() + tally.clipped_away > ctx.budget) {
+        return None;
+    }
+    built.report.presort_ms = tally.presort_ms;
+    // The root's arrays and their two children's, beside the biggest sweep's working set.
+    built.report.peak_working_bytes = 2 * root_bytes + tally.peak_working_bytes;
+    Some(built)
+}
+
+/// The subtree of `node`.
+fn grow(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
+    let n = node.ids.len();
+    if n <= ctx.threshold {
+        return exact(ctx, node, total);
+    }
+    let cost = &ctx.options.cost;
+    let mut tally = Tally::default();
+    let split = if n as u32 <= cost.leaf_size || node.depth >= ctx.max_depth {
+        None
+    } else {
+        best_split(
+            &node.boxes,
+            &node.bounds,
+            ctx.options.axes,
+            ctx.options.bins,
+            cost,
+            ctx.parallel,
+        )
+        .filter(|s| s.cost < cost.leaf_cost(n as u32))
+        .filter(|s| {
+            let extra = (s.n_left + s.n_right) as usize - n;
+            let fits = if ctx.parallel {
+                total.fetch_add(extra, Ordering::Relaxed) + extra <= ctx.budget
+            } else {
+                total.load(Ordering::Relaxed) + extra <= ctx.budget
+            };
+            tally.budget_bound |= !fits;
+            fits
+        })
+    };
+    let Some(split) = split else {
+        return (Top::Leaf(node.ids), tally);
+    };
+    let (left, right) = partition(ctx, node, &split);
+    let kept = left.ids.len() + right.ids.len();
+    tally.clipped_away += (split.n_left + split.n_right) as usize - kept;
+    if !ctx.parallel {
+        // The sweep's running total: the pending children replace their parent.
+        let now = total.load(Ordering::Relaxed);
+        total.store(now + kept - n, Ordering::Relaxed);
+    }
+    let ((l, lt), (r, rt)) = if ctx.parallel {
+        rayon::join(|| grow(ctx, left, total), || grow(ctx, right, total))
+    } else {
+        let l = grow(ctx, left, total);
+        (l, grow(ctx, right, total))
+    };
+    let top = Top::Split {
+        axis: split.axis,
+        pos: split.pos,
+        children: Box::new([l, r]),
+    };
+    (top, tally.add(lt).add(rt))
+}
+
+/// The exact sweep's subtree of a node at or below the threshold, from its events made and
+/// sorted here.
+fn exact(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
+    let n = node.ids.len();
+    let triangles: Vec<Triangle> = node
+        .ids
+        .iter()
+        .map(|&i| ctx.triangles[i as usize])
+        .collect();
+    // Depth first, the subtree may hold what the budget leaves beside the references of the
+    // finished leaves and the pending nodes: exactly the sweep's running total.
+    let outside = if ctx.parallel {
+        0
+    } else {
+        total.load(Ordering::Relaxed) - n
+    };
+    let subtree = Subtree {
+        triangles: &triangles,
+        bounds: node.bounds,
+        depth: node.depth,
+        max_depth: ctx.max_depth,
+        budget: ctx.budget - outside,
+        shared_total: ctx.parallel.then_some(total),
+    };
+    let mut piece = Piece {
+        nodes: Vec::new(),
+        refs: Vec::new(),
+    };
+    let report = build_subtree(
+        &subtree,
+        &node.boxes,
+        ctx.options,
+        &mut piece.nodes,
+        &mut piece.refs,
+    );
+    for r in piece.refs.iter_mut() {
+        *r = node.ids[*r as usize];
+    }
+    if !ctx.parallel {
+        total.store(outside + piece.refs.len(), Ordering::Relaxed);
+    }
+    let tally = Tally {
+        budget_bound: report.budget_bound,
+        clipped_away: report.clipped_away,
+        presort_ms: report.presort_ms,
+        peak_working_bytes: report.peak_working_bytes,
+    };
+    (Top::Exact(piece), tally)
+}
+
+/// The node's references split between its children by the sweep's rules: left if
+/// `lo < pos`, right if `hi > pos`, those lying in the plane to the split's planar side;
+/// straddlers re-clipped to each child's box when clipping (and dropped where that is empty).
+fn partition(ctx: &Ctx, node: Refs, split: &Split) -> (Refs, Refs) {
+    let (axis, pos) = (split.axis, split.pos);
+    let (left_box, right_box) = node.bounds.split(axis, pos);
+    let child = |cap: u32, bounds| Refs {
+        ids: Vec::with_capacity(cap as usize),
+        boxes: Vec::with_capacity(cap as usize),
+        bounds,
+        depth: node.depth + 1,
+    };
+    let (mut left, mut right) = (
+        child(split.n_left, left_box),
+        child(split.n_right, right_box),
+    );
+    for (&id, b) in node.ids.iter().zip(&node.boxes) {
+        let (lo, hi) = (b.lo[axis], b.hi[axis]);
+        let in_plane = lo == pos && hi == pos;
+        let to_left = lo < pos || (in_plane && split.planar_left);
+        let to_right = hi > pos || (in_plane && !split.planar_left);
+        if to_left && to_right && ctx.options.clip {
+            let tri = &ctx.triangles[id as usize];
+            for side in [&mut left, &mut right] {
+                let c = clipped_bounds(tri, &side.bounds);
+                if !c.is_empty() {
+                    side.ids.push(id);
+                    side.boxes.push(c);
+                }
+            }
+            continue;
+        }
+        if to_left {
+            left.ids.push(id);
+            left.boxes.push(*b);
+        }
+        if to_right {
+            right.ids.push(id);
+            right.boxes.push(*b);
+        }
+    }
+    (left, right)
+}
+
+/// The cheapest bin boundary of a node whose references have `boxes`, by the one ranking,
+/// or `None` when no boundary lies strictly inside the node.
+fn best_split(
+    boxes: &[Aabb],
+    node: &Aabb,
+    axes: Axes,
+    bins: u32,
+    cost: &CostModel,
+    parallel: bool,
+) -> Option<Split> {
+    let axis_list = match axes {
+        Axes::All => 0..3,
+        Axes::Longest => {
+            let a = node.longest_axis();
+            a..a + 1
+        }
+    };
+    let n = boxes.len() as u32;
+    let mut best = None;
+    for axis in axis_list {
+        let planes = planes(node, axis, bins);
+        if planes.is_empty() {
+            continue;
+        }
+        let h = if parallel && boxes.len() > PARALLEL_HISTOGRAM {
+            boxes
+                .par_chunks(PARALLEL_HISTOGRAM / 4)
+                .map(|chunk| Histograms::of(chunk, axis, &planes, node, bins))
+                .reduce_with(Histograms::add)
+                .expect("boxes is not empty")
+        } else {
+            Histograms::of(boxes, axis, &planes, node, bins)
+        };
+        let (mut below, mut above) = (0, n);
+        for (j, &pos) in planes.iter().enumerate() {
+            // `lo[k]` counts lo ends with k boundaries at or below them: those below boundary
+            // j have k <= j. `hi[k]` counts hi ends with k boundaries below them: those above
+            // boundary j have k > j. Ends in the plane are in neither.
+            below += h.lo[j];
+            above -= h.hi[j];
+            let candidate = priced(node, axis, pos, below, above, h.planar[j], cost);
+            if candidate.beats(&best) {
+                best = Some(candidate);
+            }
+        }
+    }
+    best
+}
+
+/// The bin boundaries `lo + (hi - lo) * i / bins` of the node on `axis` that lie strictly
+/// inside it, increasing (boundaries that round onto the node's faces or onto each other,
+/// in a box thin for its coordinates, are dropped).
+pub(super) fn planes(node: &Aabb, axis: usize, bins: u32) -> Vec<f32> {
+    let (lo, hi) = (node.lo[axis], node.hi[axis]);
+    let mut out: Vec<f32> = Vec::with_capacity(bins as usize);
+    for i in 1..bins {
+        let p = lo + (hi - lo) * (i as f32 / bins as f32) + 0.0;
+        if p > lo && p < hi && out.last().is_none_or(|&q| p > q) {
+            out.push(p);
+        }
+    }
+    out
+}
+
+/// Counts of a node's references against its boundaries on one axis.
+struct Histograms {
+    /// By the number of boundaries at or below a reference's lo end (`planes.len() + 1`).
+    lo: Vec<u32>,
+    /// By the number of boundaries strictly below a reference's hi end.
+    hi: Vec<u32>,
+    /// References flat on the axis lying in boundary j.
+    planar: Vec<u32>,
+}
+
+impl Histograms {
+    fn of(boxes: &[Aabb], axis: usize, planes: &[f32], node: &Aabb, bins: u32) -> Histograms {
+        let m = planes.len();
+        let mut h = Histograms {
+            lo: vec![0; m + 1],
+            hi: vec![0; m + 1],
+            planar: vec![0; m],
+        };
+        // The bin a value falls in, guessed by arithmetic, then made exact by comparing with
+        // the boundaries themselves (usually no step), so that the counts are the exact ones.
+        let origin = node.lo[axis];
+        let scale = bins as f32 / (node.hi[axis] - origin);
+        let guess = |x: f32| (((x - origin) * scale).max(0.0) as usize).min(m);
+        for b in boxes {
+            let (lo, hi) = (b.lo[axis], b.hi[axis]);
+            let mut k = guess(lo);
+            while k > 0 && planes[k - 1] > lo {
+                k -= 1;
+            }
+            while k < m && planes[k] <= lo {
+                k += 1;
+            }
+            h.lo[k] += 1;
+            if lo == hi && k > 0 && planes[k - 1] == lo {
+                h.planar[k - 1] += 1;
+            }
+            let mut k = guess(hi);
+            while k > 0 && planes[k - 1] >= hi {
+                k -= 1;
+            }
+            while k < m && planes[k] < hi {
+                k += 1;
+            }
+            h.hi[k] += 1;
+        }
+        h
+    }
+
+    fn add(mut self, other: Histograms) -> Histograms {
+        for (a, b) in [
+            (&mut self.lo, &other.lo),
+            (&mut self.hi, &other.hi),
+            (&mut self.planar, &other.planar),
+        ] {
+            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+        }
+        self
+    }
+}
+
+/// Writes `top` from slot `slot` on in the sweep's layout: a node's two children side by
+/// side, appended when it is split, depth first, left first; leaves' references in order.
+fn lay_out(top: Top, out: &mut BuiltTree, slot: usize) {
+    match top {
+        Top::Leaf(ids) => {
+            out.nodes[slot] = Node::leaf(out.refs.len() as u32, ids.len() as u32);
+            out.refs.extend_from_slice(&ids);
+        }
+        Top::Exact(piece) => stitch::place(out, slot, &piece),
+        Top::Split {
+            axis,
+            pos,
+            children,
+        } => {
+            let left = out.nodes.len();
+            out.nodes[slot] = Node::interior(axis, pos, left as u32);
+            out.nodes.extend([Node::leaf(0, 0); 2]);
+            let [l, r] = *children;
+            lay_out(l, out, left);
+            lay_out(r, out, left + 1);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Vec3;
+
+    /// Counting every box directly at each boundary, as the shared rules say.
+    fn brute(
+        boxes: &[Aabb],
+        node: &Aabb,
+        axes: Axes,
+        bins: u32,
+        cost: &CostModel,
+    ) -> Option<Split> {
+        let axis_list: Vec<usize> = match axes {
+            Axes::All => vec![0, 1, 2],
+            Axes::Longest => vec![node.longest_axis()],
+        };
+        let mut best: Option<Split> = None;
+        for a in axis_list {
+            for p in planes(node, a, bins) {
+                let l = boxes.iter().filter(|b| b.lo[a] < p).count() as u32;
+                let r = boxes.iter().filter(|b| b.hi[a] > p).count() as u32;
+                let pl = boxes
+                    .iter()
+                    .filter(|b| b.lo[a] == p && b.hi[a] == p)
+                    .count() as u32;
+                let s = priced(node, a, p, l, r, pl, cost);
+                if s.beats(&best) {
+                    best = Some(s);
+                }
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn histograms_count_as_direct_counting_does() {
+        let mut seed = 5u64;
+        let mut rnd = move |k: u64| {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) % k
+        };
+        let cost = CostModel::default();
+        for round in 0..300 {
+            let bins = [2, 3, 4, 8, 16][round % 5];
+            let n = 1 + rnd(80) as usize;
+            // Corners on a grid of eighths that the boundaries of a [0, 4] box often hit, so
+            // ends and flat boxes lie in boundaries.
+            let mut boxes = Vec::new();
+            for _ in 0..n {
+                let (mut lo, mut hi) = (Vec3::splat(0.0), Vec3::splat(0.0));
+                for a in 0..3 {
+                    let x = rnd(33) as f32 * 0.125;
+                    let w = if rnd(3) == 0 {
+                        0.0
+                    } else {
+                        rnd(9) as f32 * 0.125
+                    };
+                    lo[a] = x;
+                    hi[a] = (x + w).min(4.0);
+                }
+                boxes.push(Aabb::new(lo, hi));
+            }
+            // Boxes reaching out of the node too, as with clipping off.
+            let node = if round % 3 == 0 {
+                Aabb::new(Vec3::splat(0.5), Vec3::splat(3.5))
+            } else {
+                Aabb::new(Vec3::splat(0.0), Vec3::splat(4.0))
+            };
+            for axes in [Axes::All, Axes::Longest] {
+                let got = best_split(&boxes, &node, axes, bins, &cost, false);
+                let want = brute(&boxes, &node, axes, bins, &cost);
+                assert_eq!(got, want, "round {round}, {bins} bins, {axes:?}");
+            }
+            // Histograms of parts add up to the whole's, as the parallel chunks are summed.
+            let planes = planes(&node, 0, bins);
+            let whole = Histograms::of(&boxes, 0, &planes, &node, bins);
+            let (a, b) = boxes.split_at(n / 2);
+            let sum = Histograms::of(a, 0, &planes, &node, bins)
+                .add(Histograms::of(b, 0, &planes, &node, bins));
+            assert_eq!(
+                (whole.lo, whole.hi, whole.planar),
+                (sum.lo, sum.hi, sum.planar)
+            );
+        }
+    }
+
+    #[test]
+    fn boundaries_lie_strictly_inside_and_increase() {
+        let node = Aabb::new(Vec3::splat(1e7), Vec3::new(1e7 + 2.0, 1.0e7 + 1.0, 3e7));
+        for bins in [2, 7, 64, 1024] {
+            for axis in 0..3 {
+                let p = planes(&node, axis, bins);
+                assert!(p.len() < bins as usize);
+                assert!(p.windows(2).all(|w| w[0] < w[1]));
+                assert!(p.iter().all(|&x| x > node.lo[axis] && x < node.hi[axis]));
+            }
+        }
+        // A box one float wide has no boundary inside it.
+        let thin = Aabb::new(
+            Vec3::splat(1.0),
+            Vec3::splat(f32::from_bits(1.0f32.to_bits() + 1)),
+        );
+        assert!(planes(&thin, 0, 16).is_empty());
+    }
+}
