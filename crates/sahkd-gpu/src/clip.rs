@@ -2,7 +2,7 @@
 //! WGSL library [`CLIP_WGSL`] (software f64, see `shaders/clip.wgsl`) for the level builder's
 //! kernels, and test-facing launches of it over host data.
 
-use crate::kernel::{Arg, Kernel};
+use crate::kernel::Kernel;
 use crate::price::box_words;
 use crate::{Gpu, GpuError};
 use sahkd::{Aabb, Triangle, Vec3};
@@ -105,8 +105,6 @@ struct Params {
     pad: [u32; 3],
 }
 
-const ARGS: [Arg; 4] = [Arg::Uniform, Arg::Read, Arg::Read, Arg::Write];
-
 fn run(
     gpu: &Gpu,
     entry: &str,
@@ -114,8 +112,7 @@ fn run(
     inputs: [&wgpu::Buffer; 2],
     out_words: usize,
 ) -> Result<Vec<u32>, GpuError> {
-    let module = gpu.module("clip", &format!("{CLIP_WGSL}\n{KERNELS}"));
-    let kernel = Kernel::new(gpu, &module, entry, &ARGS);
+    let kernel = Kernel::new(gpu, &format!("{CLIP_WGSL}\n{KERNELS}"), entry);
     let params = gpu.uniform(&Params {
         n: n as u32,
         pad: [0; 3],
@@ -125,7 +122,12 @@ fn run(
     kernel.dispatch(
         gpu,
         &mut encoder,
-        &[&params, inputs[0], inputs[1], &out],
+        &[
+            ("clip_params", &params),
+            ("clip_in0", inputs[0]),
+            ("clip_in1", inputs[1]),
+            ("clip_out", &out),
+        ],
         n as u64,
     );
     gpu.submit(encoder);

@@ -9,7 +9,7 @@ pub const GROUP: u32 = 256;
 /// Workgroups per dispatch dimension (the WebGPU minimum); larger launches go 2-D.
 const MAX_GROUPS: u32 = 65_535;
 
-/// How a kernel sees one binding, in binding order.
+/// How a kernel sees one binding, as its WGSL declares it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Arg {
     /// Small parameters (`var<uniform>`).
@@ -20,19 +20,87 @@ pub enum Arg {
     Write,
 }
 
-/// One entry point of a WGSL module, ready to dispatch.
+/// The WGSL every module starts with (`thread_index`, `order_key`): [`Gpu::module`] puts it in
+/// front of the source.
+pub const PRELUDE: &str = include_str!("shaders/prelude.wgsl");
+
+/// The bindings a WGSL source declares (`@binding(i) var<...> name`), in binding order: name
+/// and kind. Every binding of group 0 from 0 up, with no gap, or an error naming the problem.
+pub fn declared_bindings(source: &str) -> Result<Vec<(String, Arg)>, String> {
+    let mut found: Vec<(u32, String, Arg)> = Vec::new();
+    for line in source.lines() {
+        let line = line.trim();
+        if line.starts_with("//") {
+            continue;
+        }
+        let Some(at) = line.find("@binding(") else {
+            continue;
+        };
+        let rest = &line[at + "@binding(".len()..];
+        let (index, rest) = rest
+            .split_once(')')
+            .ok_or_else(|| format!("unreadable binding: {line}"))?;
+        let index: u32 = index
+            .trim()
+            .parse()
+            .map_err(|_| format!("unreadable binding index: {line}"))?;
+        let rest = rest.trim_start();
+        let rest = rest
+            .strip_prefix("var<")
+            .ok_or_else(|| format!("binding is not a var<...>: {line}"))?;
+        let (kind, rest) = rest
+            .split_once('>')
+            .ok_or_else(|| format!("unreadable binding: {line}"))?;
+        let kind: String = kind.chars().filter(|c| !c.is_whitespace()).collect();
+        let arg = match kind.as_str() {
+            "uniform" => Arg::Uniform,
+            "storage" | "storage,read" => Arg::Read,
+            "storage,read_write" => Arg::Write,
+            _ => return Err(format!("unknown binding kind {kind:?}: {line}")),
+        };
+        let name = rest
+            .trim_start()
+            .split(|c: char| !(c.is_alphanumeric() || c == '_'))
+            .next()
+            .unwrap_or_default();
+        if name.is_empty() {
+            return Err(format!("binding without a name: {line}"));
+        }
+        found.push((index, name.to_string(), arg));
+    }
+    found.sort_by_key(|b| b.0);
+    for (i, (index, name, _)) in found.iter().enumerate() {
+        if *index != i as u32 {
+            return Err(format!("binding {name} is number {index}, expected {i}"));
+        }
+        if found[..i].iter().any(|b| &b.1 == name) {
+            return Err(format!("two bindings named {name}"));
+        }
+    }
+    Ok(found.into_iter().map(|(_, n, a)| (n, a)).collect())
+}
+
+/// One entry point of a WGSL module, ready to dispatch, with the names and kinds of its
+/// bindings read from the source: a launch binds its buffers by those names.
 pub struct Kernel {
+    entry: String,
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
-    args: Vec<Arg>,
+    bindings: Vec<(String, Arg)>,
 }
 
 impl Kernel {
-    pub fn new(gpu: &Gpu, module: &wgpu::ShaderModule, entry: &str, args: &[Arg]) -> Kernel {
-        let entries: Vec<wgpu::BindGroupLayoutEntry> = args
+    /// Compiles entry point `entry` of `source` (the prelude goes in front). The bind group
+    /// layout is explicit, from the source's declarations (automatic layouts drop unused
+    /// bindings and then reject bind groups that have them). A source whose declarations
+    /// cannot be read is a bug of this crate: it panics, naming the kernel.
+    pub fn new(gpu: &Gpu, source: &str, entry: &str) -> Kernel {
+        let bindings = declared_bindings(source).unwrap_or_else(|e| panic!("kernel {entry}: {e}"));
+        let module = gpu.module(entry, source);
+        let entries: Vec<wgpu::BindGroupLayoutEntry> = bindings
             .iter()
             .enumerate()
-            .map(|(i, a)| wgpu::BindGroupLayoutEntry {
+            .map(|(i, (_, a))| wgpu::BindGroupLayoutEntry {
                 binding: i as u32,
                 visibility: wgpu::ShaderStages::COMPUTE,
                 ty: wgpu::BindingType::Buffer {
@@ -60,29 +128,62 @@ impl Kernel {
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(entry),
             layout: Some(&pipeline_layout),
-            module,
+            module: &module,
             entry_point: Some(entry),
             compilation_options: Default::default(),
             cache: None,
         });
         Kernel {
+            entry: entry.to_string(),
             pipeline,
             layout,
-            args: args.to_vec(),
+            bindings,
         }
     }
 
+    /// The bindings as the WGSL declares them, in binding order.
+    pub fn bindings(&self) -> &[(String, Arg)] {
+        &self.bindings
+    }
+
+    /// The buffers of `given` (name, buffer) in binding order, each matched by name to the
+    /// WGSL's declaration; a name missing, unknown or given twice is reported.
+    fn bind<'b>(
+        &self,
+        given: &[(&str, &'b wgpu::Buffer)],
+    ) -> Result<Vec<&'b wgpu::Buffer>, String> {
+        for (i, (name, _)) in given.iter().enumerate() {
+            if !self.bindings.iter().any(|(n, _)| n == name) {
+                return Err(format!("kernel {} has no binding {name}", self.entry));
+            }
+            if given[..i].iter().any(|(n, _)| n == name) {
+                return Err(format!("kernel {}: {name} bound twice", self.entry));
+            }
+        }
+        self.bindings
+            .iter()
+            .map(|(name, _)| {
+                given
+                    .iter()
+                    .find(|(n, _)| n == name)
+                    .map(|(_, b)| *b)
+                    .ok_or_else(|| format!("kernel {}: binding {name} not given", self.entry))
+            })
+            .collect()
+    }
+
     /// Records a launch of at least `threads` invocations (whole workgroups, 2-D beyond
-    /// 65 535 of them; shaders compute their index as `(wid.y * nwg.x + wid.x) * 256 + lid.x`
-    /// and ignore indices past their length).
+    /// 65 535 of them; shaders compute their index with the prelude's `thread_index` and
+    /// ignore indices past their length). Buffers are bound by the names the WGSL gives them;
+    /// a mismatch is a bug of this crate and panics, naming the kernel and the binding.
     pub fn dispatch(
         &self,
         gpu: &Gpu,
         encoder: &mut wgpu::CommandEncoder,
-        buffers: &[&wgpu::Buffer],
+        buffers: &[(&str, &wgpu::Buffer)],
         threads: u64,
     ) {
-        assert_eq!(buffers.len(), self.args.len(), "one buffer per binding");
+        let buffers = self.bind(buffers).unwrap_or_else(|e| panic!("{e}"));
         let groups = threads.div_ceil(GROUP as u64).max(1);
         let x = groups.min(MAX_GROUPS as u64);
         let y = groups.div_ceil(x);
@@ -99,7 +200,7 @@ impl Kernel {
             })
             .collect();
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: None,
+            label: Some(&self.entry),
             layout: &self.layout,
             entries: &entries,
         });
@@ -111,12 +212,13 @@ impl Kernel {
 }
 
 impl Gpu {
-    /// Compiles WGSL (errors surface at the next [`Gpu::finish`]).
+    /// Compiles WGSL with the [`PRELUDE`] in front (errors surface at the next
+    /// [`Gpu::finish`]).
     pub fn module(&self, label: &str, source: &str) -> wgpu::ShaderModule {
         self.device
             .create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
+                source: wgpu::ShaderSource::Wgsl(format!("{PRELUDE}\n{source}").into()),
             })
     }
 

@@ -1,7 +1,7 @@
 //! The SAH cost of every candidate plane of a level (see `shaders/price.wgsl` for how the f32
 //! operations are kept identical to [`sahkd::CostModel::split_cost`]).
 
-use crate::kernel::{Arg, Kernel};
+use crate::kernel::Kernel;
 use crate::{Gpu, GpuError};
 use sahkd::{Aabb, CostModel};
 
@@ -41,19 +41,10 @@ pub fn box_words(boxes: &[Aabb]) -> Vec<f32> {
 
 impl Price {
     pub fn new(gpu: &Gpu) -> Price {
-        let module = gpu.module("price", include_str!("shaders/price.wgsl"));
-        let args = [
-            Arg::Uniform,
-            Arg::Read,
-            Arg::Read,
-            Arg::Read,
-            Arg::Read,
-            Arg::Write,
-            Arg::Write,
-        ];
+        let source = include_str!("shaders/price.wgsl");
         Price {
-            kernel: Kernel::new(gpu, &module, "price", &args),
-            divide: Kernel::new(gpu, &module, "divide", &args),
+            kernel: Kernel::new(gpu, source, "price"),
+            divide: Kernel::new(gpu, source, "divide"),
         }
     }
 
@@ -83,7 +74,15 @@ impl Price {
         self.kernel.dispatch(
             gpu,
             encoder,
-            &[&params, boxes, pos, owner, counts, cost, packed],
+            &[
+                ("params", &params),
+                ("boxes", boxes),
+                ("pos", pos),
+                ("owner", owner),
+                ("counts", counts),
+                ("cost", cost),
+                ("packed", packed),
+            ],
             layout.n as u64,
         );
     }
@@ -149,13 +148,13 @@ pub fn divide_bits(gpu: &Gpu, pairs: &[[u32; 2]]) -> Result<Vec<u32>, GpuError> 
         gpu,
         &mut encoder,
         &[
-            &params,
-            &unused,
-            &unused,
-            &unused,
-            &operands,
-            &quotient,
-            &unused_out,
+            ("params", &params),
+            ("boxes", &unused),
+            ("pos", &unused),
+            ("owner", &unused),
+            ("counts", &operands),
+            ("cost", &quotient),
+            ("packed", &unused_out),
         ],
         n as u64,
     );

@@ -1,7 +1,7 @@
 //! Each node's best candidate over the level's flat candidate array (see
 //! `shaders/segmin.wgsl`): a segmented minimum keyed by (cost, position, index).
 
-use crate::kernel::{Arg, Kernel};
+use crate::kernel::Kernel;
 use crate::{Gpu, GpuError};
 
 #[repr(C)]
@@ -20,9 +20,8 @@ pub struct SegMin {
 
 impl SegMin {
     pub fn new(gpu: &Gpu) -> SegMin {
-        let module = gpu.module("segmin", include_str!("shaders/segmin.wgsl"));
-        let args = [Arg::Uniform, Arg::Read, Arg::Read, Arg::Read, Arg::Write];
-        let k = |entry| Kernel::new(gpu, &module, entry, &args);
+        let source = include_str!("shaders/segmin.wgsl");
+        let k = |entry| Kernel::new(gpu, source, entry);
         SegMin {
             rounds: [k("min_cost"), k("min_pos"), k("min_index")],
         }
@@ -47,7 +46,18 @@ impl SegMin {
             pad: [0; 3],
         });
         for round in &self.rounds {
-            round.dispatch(gpu, encoder, &[&params, cost, pos, owner, best], n as u64);
+            round.dispatch(
+                gpu,
+                encoder,
+                &[
+                    ("params", &params),
+                    ("cost", cost),
+                    ("pos", pos),
+                    ("owner", owner),
+                    ("best", best),
+                ],
+                n as u64,
+            );
         }
     }
 }

@@ -22,7 +22,7 @@
 //! kernel do three of log n: at the bunny's root (about 600 spans cut per plane) that is 640
 //! steps per candidate against about 50 reads, so this pays only where planes cut few spans.
 
-use crate::kernel::{Arg, Kernel};
+use crate::kernel::Kernel;
 use crate::price::{box_words, Layout};
 use crate::{Gpu, GpuError};
 use sahkd::Aabb;
@@ -85,30 +85,14 @@ impl SpaceTree {
     pub fn new(gpu: &Gpu) -> SpaceTree {
         let source = include_str!("shaders/space_tree.wgsl");
         let header = source.split("//! kernel ").next().unwrap_or_default();
-        let module = |name: &str| {
+        let kernel = |name: &str| {
             let body = section(source, name);
-            gpu.module(name, &format!("{header}{body}"))
+            Kernel::new(gpu, &format!("{header}{body}"), name)
         };
-        use Arg::*;
         SpaceTree {
-            leaves: Kernel::new(
-                gpu,
-                &module("leaves"),
-                "leaves",
-                &[Uniform, Read, Read, Read, Write, Write],
-            ),
-            heights: Kernel::new(
-                gpu,
-                &module("heights"),
-                "heights",
-                &[Uniform, Read, Read, Write],
-            ),
-            count: Kernel::new(
-                gpu,
-                &module("count"),
-                "count",
-                &[Uniform, Read, Read, Read, Read, Write, Write],
-            ),
+            leaves: kernel("leaves"),
+            heights: kernel("heights"),
+            count: kernel("count"),
         }
     }
 
@@ -136,12 +120,12 @@ impl SpaceTree {
             gpu,
             encoder,
             &[
-                &gpu.uniform(&p),
-                ref_boxes,
-                entries,
-                starts,
-                trees,
-                &slot_node,
+                ("params", &gpu.uniform(&p)),
+                ("ref_boxes", ref_boxes),
+                ("entries", entries),
+                ("starts", starts),
+                ("trees", trees),
+                ("slot_node", &slot_node),
             ],
             3 * refs as u64,
         );
@@ -152,7 +136,12 @@ impl SpaceTree {
             self.heights.dispatch(
                 gpu,
                 encoder,
-                &[&gpu.uniform(&p), starts, &slot_node, trees],
+                &[
+                    ("params", &gpu.uniform(&p)),
+                    ("starts", starts),
+                    ("slot_node", &slot_node),
+                    ("trees", trees),
+                ],
                 3 * p.windows as u64,
             );
         }
@@ -190,13 +179,13 @@ impl SpaceTree {
             gpu,
             encoder,
             &[
-                &gpu.uniform(&p),
-                starts,
-                trees,
-                cand_pos,
-                cand_owner,
-                counts,
-                stats,
+                ("params", &gpu.uniform(&p)),
+                ("starts", starts),
+                ("trees", trees),
+                ("cand_pos", cand_pos),
+                ("cand_owner", cand_owner),
+                ("counts", counts),
+                ("stats", stats),
             ],
             cands.n as u64,
         );

@@ -36,9 +36,6 @@ struct TreeNode {
 
 const HOLE: u32 = 0xffffffffu;
 
-fn thread_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
-    return (wid.y * nwg.x + wid.x) * 256u + lid;
-}
 
 //! kernel leaves
 // Per slot: its span (height 0: max = hi), and the node whose segment holds it, which the
