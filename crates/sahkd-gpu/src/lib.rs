@@ -9,7 +9,7 @@
 //!   [`sahkd::CostModel::split_cost`].
 //! - [`segmin`]: each node's best candidate (cheapest, then smallest position, then lowest
 //!   axis), by three rounds of atomic minima.
-//! - [`partition`]: the stable split of every node's references into its two children
+//! - `partition` (feature `testing`): the stable split of every node's references into its two children
 //!   (flags, scan, scatter).
 //! - [`clip`]: triangles clipped to boxes in software f64, bit for bit the CPU's clip.
 //! - [`sort`]: records sorted by a 3-word key (bitonic; steps within a tile in workgroup
@@ -39,6 +39,7 @@ pub mod clip;
 mod device;
 mod kernel;
 pub mod level;
+#[cfg(feature = "testing")]
 pub mod partition;
 pub mod price;
 pub mod scan;
@@ -49,3 +50,9 @@ pub mod space_tree;
 pub use device::{Gpu, GpuError};
 pub use kernel::{Arg, Kernel};
 pub use level::{build, check_options, GpuBuild, GpuReport};
+
+// Feature `testing` adds the host-data helpers that only the tests use (run one kernel over
+// arrays held on the host and read the result back: `scan::exclusive_scan`,
+// `segmin::best_candidates`, `price::price_candidates`, `clip::clip_triangles`,
+// `sort::sort_records`, `space_tree::run_space_tree`, the `partition` module); the crate's
+// own tests turn it on through its dev-dependency on itself.

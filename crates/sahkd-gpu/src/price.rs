@@ -2,7 +2,9 @@
 //! operations are kept identical to [`sahkd::CostModel::split_cost`]).
 
 use crate::kernel::Kernel;
-use crate::{Gpu, GpuError};
+use crate::Gpu;
+#[cfg(feature = "testing")]
+use crate::GpuError;
 use sahkd::{Aabb, CostModel};
 
 #[repr(C)]
@@ -28,6 +30,7 @@ pub struct Layout {
 
 pub struct Price {
     kernel: Kernel,
+    #[cfg(feature = "testing")]
     divide: Kernel,
 }
 
@@ -44,6 +47,7 @@ impl Price {
         let source = include_str!("shaders/price.wgsl");
         Price {
             kernel: Kernel::new(gpu, source, "price"),
+            #[cfg(feature = "testing")]
             divide: Kernel::new(gpu, source, "divide"),
         }
     }
@@ -88,6 +92,7 @@ impl Price {
     }
 }
 
+#[cfg(feature = "testing")]
 /// Prices candidates held on the host; returns `(cost, packed)` per candidate.
 pub fn price_candidates(
     gpu: &Gpu,
@@ -123,6 +128,7 @@ pub fn price_candidates(
     Ok((gpu.download(&cost, n)?, gpu.download(&packed, n)?))
 }
 
+#[cfg(feature = "testing")]
 /// The shader's correctly rounded division on bit patterns `(a, b)`: the result's bits per
 /// pair (for tests of the kernel's arithmetic against the CPU's `a / b`).
 pub fn divide_bits(gpu: &Gpu, pairs: &[[u32; 2]]) -> Result<Vec<u32>, GpuError> {

@@ -66,6 +66,7 @@ impl Scan {
     }
 }
 
+#[cfg(feature = "testing")]
 /// Scans `values` on the GPU and returns the result (a convenience for tests and callers
 /// that hold the data on the host).
 pub fn exclusive_scan(gpu: &Gpu, values: &[u32]) -> Result<Vec<u32>, GpuError> {

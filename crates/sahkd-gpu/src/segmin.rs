@@ -2,7 +2,9 @@
 //! `shaders/segmin.wgsl`): a segmented minimum keyed by (cost, position, index).
 
 use crate::kernel::Kernel;
-use crate::{Gpu, GpuError};
+use crate::Gpu;
+#[cfg(feature = "testing")]
+use crate::GpuError;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -62,6 +64,7 @@ impl SegMin {
     }
 }
 
+#[cfg(feature = "testing")]
 /// The index of each of `nodes` nodes' best candidate ([`NONE`] for none), computed on the GPU.
 pub fn best_candidates(
     gpu: &Gpu,

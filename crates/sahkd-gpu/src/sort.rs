@@ -121,6 +121,7 @@ impl Sort {
 
 impl Sort {
     /// Sorts host records on the GPU and returns them.
+    #[cfg(feature = "testing")]
     pub fn sort_records(&self, gpu: &Gpu, records: &[[u32; 4]]) -> Result<Vec<[u32; 4]>, GpuError> {
         let data = gpu.upload("sort data", records.as_flattened());
         let mut encoder = gpu.encoder();
@@ -134,6 +135,7 @@ impl Sort {
     }
 }
 
+#[cfg(feature = "testing")]
 /// Sorts `records` on the GPU and returns them (a convenience for tests and callers that hold
 /// the data on the host; it compiles the kernels, about 0.5 s on lavapipe, so reuse a [`Sort`]
 /// for more than one sort).

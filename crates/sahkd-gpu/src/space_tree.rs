@@ -23,9 +23,10 @@
 //! steps per candidate against about 50 reads, so this pays only where planes cut few spans.
 
 use crate::kernel::Kernel;
-use crate::price::{box_words, Layout};
+use crate::price::Layout;
 use crate::{Gpu, GpuError};
-use sahkd::Aabb;
+#[cfg(feature = "testing")]
+use {crate::price::box_words, sahkd::Aabb};
 
 #[repr(C)]
 #[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
@@ -175,11 +176,12 @@ impl SpaceTree {
             first2: cands.first2 as u32,
             ..Params::default()
         };
+        let params = gpu.uniform(&p);
         self.count.dispatch(
             gpu,
             encoder,
             &[
-                ("params", &gpu.uniform(&p)),
+                ("params", &params),
                 ("starts", starts),
                 ("trees", trees),
                 ("cand_pos", cand_pos),
@@ -204,6 +206,7 @@ fn section<'a>(source: &'a str, name: &str) -> &'a str {
         .unwrap_or_else(|| panic!("kernel {name} in space_tree.wgsl"))
 }
 
+#[cfg(feature = "testing")]
 /// What a whole run on host data gives: the trees, the counts, the counters.
 pub struct HostRun {
     pub trees: Vec<TreeNode>,
@@ -211,6 +214,7 @@ pub struct HostRun {
     pub stats: WalkStats,
 }
 
+#[cfg(feature = "testing")]
 /// Builds the trees and counts `cands` (position, owner; holes owned by `u32::MAX`, axis
 /// blocks starting at `first1` and `first2`) on the GPU, from host data laid out as the
 /// buffers of this module (`ref_boxes` indexed by the reference ids of `entries`).
@@ -273,6 +277,7 @@ pub fn run_space_tree(
     })
 }
 
+#[cfg(feature = "testing")]
 /// The counts of [`run_space_tree`] alone.
 #[allow(clippy::too_many_arguments)]
 pub fn count_space_tree(

@@ -2,7 +2,9 @@
 // in front of every kernel below; each section opened by a kernel marker line is compiled as
 // its own module with only the bindings it uses.
 //
-// A kernel marked "with clip.wgsl" gets that library between this header and its body.
+// A kernel marked "with clip.wgsl" gets that library between this header and its body; every
+// module starts with prelude.wgsl (`thread_index`, `order_key`). Each launch binds its buffers
+// by the names declared here; a binding the kernel never writes is declared `read`.
 //
 // A level's references are a table in node order: per reference r its primitive
 // `ref_prim[r]`, its node `ref_node[r]` and its box `ref_boxes[6r..6r+6]` (lo.xyz, hi.xyz;
@@ -388,7 +390,7 @@ fn classify(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg:
 // left child) for an interior node; the children of a level follow it, in parent order.
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> starts: array<u32>;
-@group(0) @binding(2) var<storage, read_write> split: array<u32>;
+@group(0) @binding(2) var<storage, read> split: array<u32>;
 @group(0) @binding(3) var<storage, read> split_scan: array<u32>;
 @group(0) @binding(4) var<storage, read> leaf_scan: array<u32>;
 @group(0) @binding(5) var<storage, read_write> out_nodes: array<u32>;
@@ -414,11 +416,11 @@ fn emit_nodes(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nw
 //! kernel emit_refs
 // Per reference of a leaf: its primitive, at the leaf's offset.
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> starts: array<u32>;
+@group(0) @binding(1) var<storage, read> starts: array<u32>;
 @group(0) @binding(2) var<storage, read> ref_prim: array<u32>;
 @group(0) @binding(3) var<storage, read> ref_node: array<u32>;
 @group(0) @binding(4) var<storage, read> split: array<u32>;
-@group(0) @binding(5) var<storage, read_write> leaf_scan: array<u32>;
+@group(0) @binding(5) var<storage, read> leaf_scan: array<u32>;
 @group(0) @binding(6) var<storage, read_write> out_refs: array<u32>;
 
 @compute @workgroup_size(256)
@@ -444,7 +446,7 @@ fn emit_refs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg
 @group(0) @binding(2) var<storage, read> ref_prim: array<u32>;
 @group(0) @binding(3) var<storage, read> ref_node: array<u32>;
 @group(0) @binding(4) var<storage, read> ref_boxes: array<f32>;
-@group(0) @binding(5) var<storage, read_write> moved: array<u32>;
+@group(0) @binding(5) var<storage, read> moved: array<u32>;
 @group(0) @binding(6) var<storage, read> clip_boxes: array<f32>;
 @group(0) @binding(7) var<storage, read> go_l: array<u32>;
 @group(0) @binding(8) var<storage, read> go_r: array<u32>;
@@ -616,8 +618,8 @@ fn next_level(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nw
 @group(0) @binding(3) var<storage, read> ref_node: array<u32>;
 @group(0) @binding(4) var<storage, read> ref_boxes: array<u32>;
 @group(0) @binding(5) var<storage, read> split_scan: array<u32>;
-@group(0) @binding(6) var<storage, read_write> lscan: array<u32>;
-@group(0) @binding(7) var<storage, read_write> rscan: array<u32>;
+@group(0) @binding(6) var<storage, read> lscan: array<u32>;
+@group(0) @binding(7) var<storage, read> rscan: array<u32>;
 @group(0) @binding(8) var<storage, read> records: array<u32>;
 @group(0) @binding(9) var<storage, read> new_id: array<u32>;
 @group(0) @binding(10) var<storage, read_write> out_entries: array<u32>;
