@@ -29,11 +29,14 @@ impl Grow {
     ) -> Result<&wgpu::Buffer, GpuError> {
         if self.buffer.is_none() || len > self.len {
             let grown = len.max(self.len + self.len / 2).max(64);
-            let max_words = (gpu.max_binding / 4) as usize;
-            let size = if len <= max_words {
-                grown.min(max_words)
-            } else {
+            let binding_words = (gpu.max_binding / 4) as usize;
+            let buffer_words = (gpu.max_buffer / 4) as usize;
+            // Past one binding, every part costs a binding of the kernels that use the array
+            // (a device has few): no slack there, unless the contents are kept (copied over).
+            let size = if len > buffer_words || (len > binding_words && !keep) {
                 len
+            } else {
+                grown.min(if keep { buffer_words } else { binding_words })
             };
             let buffer = gpu.storage(self.label, size)?;
             if keep {
