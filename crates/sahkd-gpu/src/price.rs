@@ -28,6 +28,35 @@ pub struct Layout {
     pub first2: usize,
 }
 
+/// Where a level's candidate layout lies on the device (byte offsets, in `buffer`, of the words
+/// holding the candidate count and the first of axis 1's and axis 2's blocks), when the host
+/// has not read it: launches are then sized by an upper bound ([`Layout::n`]) and the real
+/// values are copied into their parameters on the device.
+#[derive(Clone, Copy)]
+pub struct DeviceLayout<'a> {
+    pub buffer: &'a wgpu::Buffer,
+    pub n: u64,
+    pub first1: u64,
+    pub first2: u64,
+}
+
+impl DeviceLayout<'_> {
+    /// Records copies of the layout's words into `uniform` at the byte offsets `[n, first1,
+    /// first2]` (`None`: a word the parameters do not hold).
+    pub fn patch(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        uniform: &wgpu::Buffer,
+        at: [Option<u64>; 3],
+    ) {
+        for (from, to) in [self.n, self.first1, self.first2].into_iter().zip(at) {
+            if let Some(to) = to {
+                encoder.copy_buffer_to_buffer(self.buffer, from, uniform, to, 4);
+            }
+        }
+    }
+}
+
 pub struct Price {
     kernel: Kernel,
     #[cfg(feature = "testing")]
@@ -62,6 +91,7 @@ impl Price {
         encoder: &mut wgpu::CommandEncoder,
         model: &CostModel,
         layout: Layout,
+        on_device: Option<DeviceLayout>,
         [boxes, pos, owner, counts]: [&wgpu::Buffer; 4],
         [cost, packed]: [&wgpu::Buffer; 2],
     ) {
@@ -75,6 +105,9 @@ impl Price {
             first2: layout.first2 as u32,
             pad: 0,
         });
+        if let Some(d) = on_device {
+            d.patch(encoder, &params, [Some(16), Some(20), Some(24)]);
+        }
         self.kernel.dispatch(
             gpu,
             encoder,
@@ -121,6 +154,7 @@ pub fn price_candidates(
         &mut encoder,
         model,
         layout,
+        None,
         [a, b, c, d],
         [&cost, &packed],
     );

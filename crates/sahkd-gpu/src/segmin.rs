@@ -2,6 +2,7 @@
 //! `shaders/segmin.wgsl`): a segmented minimum keyed by (cost, position, index).
 
 use crate::kernel::Kernel;
+use crate::price::DeviceLayout;
 use crate::Gpu;
 #[cfg(feature = "testing")]
 use crate::GpuError;
@@ -29,7 +30,8 @@ impl SegMin {
         }
     }
 
-    /// Records the three rounds over `n` candidates (`cost` as f32 >= 0 or +inf, `pos` as
+    /// Records the three rounds over `n` candidates (with `on_device`, `n` is an upper bound
+    /// and the real count is copied in on the device) (`cost` as f32 >= 0 or +inf, `pos` as
     /// f32, `owner` the node or `u32::MAX` for a hole). `best` holds 3 words per node, filled
     /// with `u32::MAX` beforehand; word 2 ends as the best candidate's index.
     #[allow(clippy::too_many_arguments)]
@@ -41,12 +43,16 @@ impl SegMin {
         pos: &wgpu::Buffer,
         owner: &wgpu::Buffer,
         n: usize,
+        on_device: Option<DeviceLayout>,
         best: &wgpu::Buffer,
     ) {
         let params = gpu.uniform(&Params {
             n: n as u32,
             pad: [0; 3],
         });
+        if let Some(d) = on_device {
+            d.patch(encoder, &params, [Some(0), None, None]);
+        }
         for round in &self.rounds {
             round.dispatch(
                 gpu,
@@ -83,7 +89,7 @@ pub fn best_candidates(
         gpu.upload("owner", owner),
     );
     let mut encoder = gpu.encoder();
-    kernel.record(gpu, &mut encoder, &cost, &pos, &owner, n, &best);
+    kernel.record(gpu, &mut encoder, &cost, &pos, &owner, n, None, &best);
     gpu.submit(encoder);
     let words = gpu.download::<u32>(&best, 3 * nodes)?;
     Ok(words.chunks(3).map(|w| w[2]).collect())

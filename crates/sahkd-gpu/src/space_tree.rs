@@ -23,7 +23,7 @@
 //! steps per candidate against about 50 reads, so this pays only where planes cut few spans.
 
 use crate::kernel::Kernel;
-use crate::price::Layout;
+use crate::price::{DeviceLayout, Layout};
 use crate::{Gpu, GpuError};
 #[cfg(feature = "testing")]
 use {crate::price::box_words, sahkd::Aabb};
@@ -160,6 +160,7 @@ impl SpaceTree {
         nodes: usize,
         refs: usize,
         cands: Layout,
+        on_device: Option<DeviceLayout>,
         [starts, trees, cand_pos, cand_owner]: [&wgpu::Buffer; 4],
         counts: &wgpu::Buffer,
         stats: &wgpu::Buffer,
@@ -177,6 +178,9 @@ impl SpaceTree {
             ..Params::default()
         };
         let params = gpu.uniform(&p);
+        if let Some(d) = on_device {
+            d.patch(encoder, &params, [Some(8), Some(12), Some(16)]);
+        }
         self.count.dispatch(
             gpu,
             encoder,
@@ -264,6 +268,7 @@ pub fn run_space_tree(
         nodes,
         refs,
         layout,
+        None,
         [&starts, &trees, &pos, &owner],
         &counts,
         &stats,

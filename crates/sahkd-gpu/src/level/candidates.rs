@@ -9,7 +9,7 @@ use crate::GpuError;
 use sahkd::build::Counting;
 
 impl Builder<'_> {
-    /// Sizes the candidate arrays for `layout`.
+    /// Sizes the candidate arrays for `layout` (an upper bound of the candidates).
     pub(super) fn candidate_buffers(&mut self, layout: Layout) -> Result<(), GpuError> {
         let (gpu, c, b) = (self.gpu, layout.n, &mut self.bufs);
         for g in [
@@ -89,6 +89,7 @@ impl Builder<'_> {
                     nodes,
                     refs,
                     layout,
+                    Some(self.device_layout(nodes)),
                     [&level.starts, trees, b.cand_pos.get(), b.cand_owner.get()],
                     b.counts.get(),
                     b.walk_stats.get(),
@@ -114,7 +115,12 @@ impl Builder<'_> {
     }
 
     /// Pricing: each candidate's cost (and its planar side), as the CPU's cost model.
-    pub(super) fn price(&mut self, level: &ListHandles, layout: Layout) -> Result<(), GpuError> {
+    pub(super) fn price(
+        &mut self,
+        level: &ListHandles,
+        p: &Params,
+        layout: Layout,
+    ) -> Result<(), GpuError> {
         let b = &self.bufs;
         self.run(|enc| {
             self.kernels.price.record(
@@ -122,6 +128,7 @@ impl Builder<'_> {
                 enc,
                 &self.options.cost,
                 layout,
+                Some(self.device_layout(p.nodes as usize)),
                 [
                     &level.boxes,
                     b.cand_pos.get(),

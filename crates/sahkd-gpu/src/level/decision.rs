@@ -32,6 +32,7 @@ impl Builder<'_> {
                     b.cand_pos.get(),
                     b.cand_owner.get(),
                     layout.n,
+                    Some(self.device_layout(nodes)),
                     b.best.get(),
                 );
             }
@@ -181,6 +182,8 @@ impl Builder<'_> {
             p.force_leaves = 1;
             let forced = gpu.uniform(&*p);
             let mut enc = gpu.encoder();
+            self.device_layout(nodes)
+                .patch(&mut enc, &forced, super::layout::PARAMS_LAYOUT);
             self.record_decide(&mut enc, level, nodes, &forced)?;
             gpu.submit(enc);
             totals.splits = 0;

@@ -5,7 +5,8 @@
 //! The host sorts the nine lists once ([`presort`]: by lo, by hi, and the flat references,
 //! per axis) and uploads them with the primitive boxes (and, with clipping, the triangles);
 //! each level then runs on the GPU, one module per phase, in the CPU level builder's order:
-//! - [`layout`]: axes in use and the candidate layout (a scan; the host reads its totals);
+//! - [`layout`]: axes in use and the candidate layout (a scan; it stays on the device, the
+//!   candidate arrays sized by an upper bound);
 //! - [`candidates`]: candidates, counting (binary searches of the node's sorted segments, or
 //!   the paper's space trees) and pricing;
 //! - [`decision`]: the best split (segmented min), the decision (scans), the sides of every
@@ -120,7 +121,8 @@ pub struct GpuReport {
     /// Presorting the lists on the host, before the upload.
     pub presort_ms: f64,
     pub levels: usize,
-    /// Reads of GPU results by the host during the build (per level: layout, decision).
+    /// Reads of GPU results by the host during the build (one per level: the decision's
+    /// totals; the candidate layout stays on the device).
     pub round_trips: usize,
     pub total_ms: f64,
     /// Bytes of the level buffers on the device at the end (they only grow, so the peak).
@@ -302,14 +304,15 @@ pub fn build(
     loop {
         b.report.levels += 1;
         let level = b.lists[cur].handles();
-        let layout = b.timed(Phase::Layout, |b| b.layout(&level, &mut p))?;
+        // The level's parameters; the layout phase copies the candidate layout in.
         let params = gpu.uniform(&p);
+        let layout = b.timed(Phase::Layout, |b| b.layout(&level, &p, &params))?;
         b.bufs.best.ensure(gpu, 3 * p.nodes as usize, false)?;
         if layout.n > 0 {
             b.candidate_buffers(layout)?;
             b.timed(Phase::Candidates, |b| b.candidates(&level, &p, &params))?;
             b.timed(Phase::Counting, |b| b.count(&level, &p, &params, layout))?;
-            b.timed(Phase::Pricing, |b| b.price(&level, layout))?;
+            b.timed(Phase::Pricing, |b| b.price(&level, &p, layout))?;
         }
         b.timed(Phase::BestSplit, |b| b.best_split(&p, &params, layout))?;
         b.timed(Phase::Decision, |b| b.decide(&level, &p, &params))?;
