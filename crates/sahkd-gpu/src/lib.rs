@@ -19,10 +19,11 @@
 //! - [`level`]: the level builder itself, every option (clipping, axes, counting): the same
 //!   tree as the CPU's.
 //!
-//! On the host stay: the one-off presort of the nine root lists before the upload (0.1-0.4 s
-//! of a build on the host; a software driver would sort slower, a real GPU was not available
-//! to measure), the reference-budget check (one comparison per level, on totals the host reads
-//! anyway to size the next level), and turning the downloaded node records into `Node`s.
+//! The one-off presort of the nine root lists runs on the device on a GPU (the bitonic sort of
+//! [`sort`] over one record per list entry) and on the host on a CPU adapter such as lavapipe,
+//! where the host's sort is faster ([`Presort`]; the report says which ran). On the host stay:
+//! the reference-budget check (one comparison per level, on totals the host reads anyway to
+//! size the next level), and turning the downloaded node records into `Node`s.
 //! Scan counting is by binary searches in each node's sorted lists rather than the CPU's event
 //! scan: the same L, R, P per candidate, with no per-node serial sweep.
 //!
@@ -49,7 +50,7 @@ pub mod space_tree;
 
 pub use device::{Gpu, GpuError};
 pub use kernel::{Arg, Kernel};
-pub use level::{build, check_options, GpuBuild, GpuReport};
+pub use level::{build, build_with, check_options, GpuBuild, GpuReport, Presort};
 
 // Feature `testing` adds the host-data helpers that only the tests use (run one kernel over
 // arrays held on the host and read the result back: `scan::exclusive_scan`,

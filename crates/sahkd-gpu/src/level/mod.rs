@@ -33,6 +33,7 @@ mod tests;
 use crate::{Gpu, GpuError};
 use buffers::{LevelBuffers, Lists};
 use kernels::Kernels;
+pub use presort::Presort;
 use sahkd::build::{Algorithm, Axes, BuildOptions};
 use sahkd::geometry::triangle_bounds;
 use sahkd::{Aabb, KdTree, Node, Triangle};
@@ -118,8 +119,11 @@ pub struct GpuReport {
     /// Milliseconds per phase, in the order of [`PHASES`], summed over levels.
     pub phase_ms: Vec<f64>,
     pub download_ms: f64,
-    /// Presorting the lists on the host, before the upload.
+    /// Presorting the nine root lists (on the host, or on the device with the records'
+    /// upload), see [`Presort`].
     pub presort_ms: f64,
+    /// Whether the presort ran on the device (else on the host).
+    pub presort_on_device: bool,
     pub levels: usize,
     /// Reads of GPU results by the host during the build (one per level: the decision's
     /// totals; the candidate layout stays on the device).
@@ -221,11 +225,22 @@ impl Builder<'_> {
     }
 }
 
-/// Builds the tree of `triangles` on `gpu`; the options must pass [`check_options`].
+/// Builds the tree of `triangles` on `gpu`; the options must pass [`check_options`]. The
+/// root lists are presorted where [`Presort::Auto`] says.
 pub fn build(
     gpu: &Gpu,
     triangles: Vec<Triangle>,
     options: &BuildOptions,
+) -> Result<GpuBuild, GpuError> {
+    build_with(gpu, triangles, options, Presort::Auto)
+}
+
+/// [`build`], with the presort on the host or on the device as `presort` says.
+pub fn build_with(
+    gpu: &Gpu,
+    triangles: Vec<Triangle>,
+    options: &BuildOptions,
+    presort: Presort,
 ) -> Result<GpuBuild, GpuError> {
     check_options(options).map_err(GpuError::Runtime)?;
     let start = Instant::now();
@@ -246,11 +261,24 @@ pub fn build(
     let bounds = prim_boxes.iter().fold(Aabb::EMPTY, |b, &t| b.union(t));
     let budget = cost.reference_budget(n);
 
+    let kernels = Kernels::new(gpu);
+    report.presort_on_device = match presort {
+        Presort::Auto => gpu.adapter.device_type != wgpu::DeviceType::Cpu,
+        Presort::Host => false,
+        Presort::Device => true,
+    };
+    let mut root = Lists::new();
     let t = Instant::now();
-    let (entries, starts) = presort::root_lists(&prim_boxes);
+    let (host_entries, starts, root_entries) = if report.presort_on_device {
+        let (len, starts) = presort::on_device(gpu, &kernels, &prim_boxes, &mut root.entries)?;
+        (None, starts, len)
+    } else {
+        let (entries, starts) = presort::root_lists(&prim_boxes);
+        let len = entries.len();
+        (Some(entries), starts, len)
+    };
     report.presort_ms = ms(t);
 
-    let kernels = Kernels::new(gpu);
     let t = Instant::now();
     let corners: Vec<f32> = if options.clip {
         triangles
@@ -267,8 +295,9 @@ pub fn build(
             .map(|f| f.to_bits())
             .collect()
     };
-    let mut root = Lists::new();
-    root.entries.write(gpu, &entries)?;
+    if let Some(entries) = host_entries {
+        root.entries.write(gpu, &entries)?;
+    }
     root.starts.write(gpu, &starts)?;
     root.boxes.write(gpu, &bits(&[bounds]))?;
     root.ref_prim
@@ -291,7 +320,7 @@ pub fn build(
 
     let mut p = Params {
         nodes: 1,
-        entries: entries.len() as u32,
+        entries: root_entries as u32,
         refs: n as u32,
         max_depth: cost.max_depth_for(n),
         leaf_size: cost.leaf_size,

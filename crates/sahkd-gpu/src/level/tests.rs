@@ -8,7 +8,7 @@ use crate::kernel::{declared_bindings, Arg};
 #[test]
 fn every_level_kernel_declares_readable_bindings() {
     let sources = level_sources();
-    assert_eq!(sources.len(), 14, "kernels in level.wgsl");
+    assert_eq!(sources.len(), 15, "kernels in level.wgsl");
     for (name, source) in sources {
         let bindings = declared_bindings(&source).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(bindings[0], ("params".to_string(), Arg::Uniform), "{name}");
@@ -139,5 +139,59 @@ fn arrays_larger_than_one_binding_give_the_cpu_tree() {
             panic!("{options:?}: GPU tree differs from the CPU's at {d}");
         }
         assert!(built.report.device_bytes as u64 > 8 * limit);
+    }
+}
+
+/// The device presort gives the host's nine lists exactly (ties by primitive, -0 before +0 as
+/// `total_cmp`, flat entries only for flat boxes), and a build with it the CPU's tree.
+#[test]
+fn device_presort_equals_the_hosts() {
+    use super::buffers::Grow;
+    use super::kernels::Kernels;
+    use super::presort;
+    use sahkd::build::{Algorithm, BuildOptions};
+    use sahkd::{Aabb, Vec3};
+    let Some(gpu) = gpu() else { return };
+    // Few distinct values: ties everywhere, -0 and +0 both, many flat boxes.
+    let values = [-1.0f32, -0.0, 0.0, 0.5, 2.0];
+    let mut state = 12345u32;
+    let mut pick = || {
+        state = state.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+        values[(state >> 16) as usize % values.len()]
+    };
+    let boxes: Vec<Aabb> = (0..5000)
+        .map(|_| {
+            let a: [f32; 3] = std::array::from_fn(|_| pick());
+            let b: [f32; 3] = std::array::from_fn(|_| pick());
+            let lo = std::array::from_fn(|i| a[i].min(b[i]));
+            let hi = std::array::from_fn(|i| a[i].max(b[i]));
+            Aabb::new(Vec3(lo), Vec3(hi))
+        })
+        .collect();
+    let (host, host_starts) = presort::root_lists(&boxes);
+    let kernels = Kernels::new(&gpu);
+    let mut entries = Grow::new("entries");
+    let (n, starts) = presort::on_device(&gpu, &kernels, &boxes, &mut entries).unwrap();
+    assert_eq!(starts, host_starts);
+    assert_eq!(n, host.len());
+    assert_eq!(gpu.download::<u32>(entries.get(), n).unwrap(), host);
+
+    let triangles = sahkd::scenes::generate("spd:toys:3000")
+        .unwrap()
+        .corner_triangles();
+    let options = BuildOptions {
+        algorithm: Algorithm::Level,
+        ..BuildOptions::default()
+    };
+    let cpu = sahkd::build_triangles(triangles.clone(), &options).unwrap();
+    for presort in [super::Presort::Device, super::Presort::Host] {
+        let built = super::build_with(&gpu, triangles.clone(), &options, presort).unwrap();
+        assert_eq!(
+            built.report.presort_on_device,
+            presort == super::Presort::Device
+        );
+        if let Some(d) = cpu.tree.first_difference(&built.tree) {
+            panic!("{presort:?} presort: GPU tree differs from the CPU's at {d}");
+        }
     }
 }

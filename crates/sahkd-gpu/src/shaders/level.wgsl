@@ -723,3 +723,19 @@ fn regen_place(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) n
     }
     out_entries[i + kept] = records[RECORD * i + 2u];
 }
+
+//! kernel payloads
+// The device presort's last step: list entry i is the primitive of sorted record i (records
+// `(list, value key, primitive, primitive)`, see level/presort.rs).
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> records: array<u32>;
+@group(0) @binding(2) var<storage, read_write> out_entries: array<u32>;
+
+@compute @workgroup_size(256)
+fn payloads(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let i = thread_index(wid, nwg, lid);
+    if (i >= params.entries) {
+        return;
+    }
+    out_entries[i] = records[RECORD * i + 3u];
+}
