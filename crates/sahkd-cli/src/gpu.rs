@@ -9,8 +9,11 @@ use serde::Serialize;
 pub struct GpuReport {
     pub adapter: String,
     pub upload_ms: f64,
-    /// Host presort of the lists, before the upload.
+    /// Presort of the nine root lists.
     pub presort_ms: f64,
+    /// Where the presort ran: "host" or "device" (the device on a GPU, the host on a CPU
+    /// adapter such as lavapipe, where it is faster).
+    pub presort: &'static str,
     /// Per phase, summed over levels, in the order the phases run.
     pub phases_ms: Vec<(String, f64)>,
     pub download_ms: f64,
@@ -45,6 +48,11 @@ pub fn build(mesh: &Mesh, options: &BuildOptions) -> Result<(Build, GpuReport)> 
         adapter: r.adapter,
         upload_ms: r.upload_ms,
         presort_ms: r.presort_ms,
+        presort: if r.presort_on_device {
+            "device"
+        } else {
+            "host"
+        },
         phases_ms: sahkd_gpu::level::PHASES
             .iter()
             .map(|s| s.to_string())

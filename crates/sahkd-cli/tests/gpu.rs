@@ -83,7 +83,8 @@ fn gpu_build_gives_the_cpu_tree_and_reports_its_phases() {
         assert!(phases.iter().all(|p| p[1].as_f64().unwrap() >= 0.0));
         let levels = report["levels"].as_u64().unwrap();
         assert_eq!(levels, gpu["max_depth"].as_u64().unwrap() + 1);
-        assert_eq!(report["round_trips"].as_u64().unwrap(), 2 * levels);
+        // One host read per level (the decision's totals).
+        assert_eq!(report["round_trips"].as_u64().unwrap(), levels);
     }
 }
 
@@ -178,6 +179,8 @@ fn bench_on_the_gpu_with_clip(clip: &str) {
     let report = &g["gpu"];
     let adapter = report["adapter"].as_str().unwrap();
     assert!(!adapter.is_empty());
+    // lavapipe is a CPU adapter: the host's presort runs there.
+    assert_eq!(report["presort"], "host");
     for key in ["upload_ms", "download_ms"] {
         assert!(report[key].as_f64().unwrap() >= 0.0, "{key}");
     }
@@ -186,8 +189,9 @@ fn bench_on_the_gpu_with_clip(clip: &str) {
     assert!(phases.iter().all(|p| p[1].as_f64().unwrap() >= 0.0));
     let levels = report["levels"].as_u64().unwrap();
     assert_eq!(levels, g["depth"].as_u64().unwrap() + 1);
-    assert_eq!(report["round_trips"].as_u64().unwrap(), 2 * levels);
-    assert_eq!(report["round_trips_per_level"].as_f64().unwrap(), 2.0);
+    // One host read per level: the decision's totals (the candidate layout stays on the GPU).
+    assert_eq!(report["round_trips"].as_u64().unwrap(), levels);
+    assert_eq!(report["round_trips_per_level"].as_f64().unwrap(), 1.0);
     // table1.md says where the builds ran and tabulates the GPU report.
     assert!(gpu_md.contains(&format!(
         "level builder's trees built on the GPU ({adapter}"
@@ -198,7 +202,7 @@ fn bench_on_the_gpu_with_clip(clip: &str) {
         .find(|l| l.starts_with("| spd:toys:500 | 1 | "))
         .expect("a GPU build row");
     assert!(
-        gpu_row.ends_with(&format!(" {levels} | {} | 2.0 |", 2 * levels)),
+        gpu_row.ends_with(&format!(" {levels} | {levels} | 1.0 |")),
         "{gpu_row}"
     );
     assert!(cpu_md.contains("Device: every build on the CPU."));

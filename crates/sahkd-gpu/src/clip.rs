@@ -2,9 +2,9 @@
 //! WGSL library [`CLIP_WGSL`] (software f64, see `shaders/clip.wgsl`) for the level builder's
 //! kernels, and test-facing launches of it over host data.
 
-use crate::kernel::{Arg, Kernel};
-use crate::price::box_words;
-use crate::{Gpu, GpuError};
+#[cfg(feature = "testing")]
+use crate::{kernel::Kernel, price::box_words, Gpu, GpuError};
+#[cfg(feature = "testing")]
 use sahkd::{Aabb, Triangle, Vec3};
 
 /// The library: `clip_bounds(tri: array<vec3<f32>, 3>, box_lo: vec3<f32>, box_hi: vec3<f32>)
@@ -12,6 +12,7 @@ use sahkd::{Aabb, Triangle, Vec3};
 /// No bindings or entry points; every name starts with `f64_`, `clip_` or `F64_`.
 pub const CLIP_WGSL: &str = include_str!("shaders/clip.wgsl");
 
+#[cfg(feature = "testing")]
 /// Entry points over host data: `clip_pairs` (9 f32 corners and 6 f32 box bounds in, lo, hi
 /// and the empty flag out) and `f64_ops` (each operation on two f64s and one f32).
 const KERNELS: &str = r#"
@@ -98,6 +99,7 @@ fn f64_ops(
 }
 "#;
 
+#[cfg(feature = "testing")]
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct Params {
@@ -105,8 +107,7 @@ struct Params {
     pad: [u32; 3],
 }
 
-const ARGS: [Arg; 4] = [Arg::Uniform, Arg::Read, Arg::Read, Arg::Write];
-
+#[cfg(feature = "testing")]
 fn run(
     gpu: &Gpu,
     entry: &str,
@@ -114,8 +115,7 @@ fn run(
     inputs: [&wgpu::Buffer; 2],
     out_words: usize,
 ) -> Result<Vec<u32>, GpuError> {
-    let module = gpu.module("clip", &format!("{CLIP_WGSL}\n{KERNELS}"));
-    let kernel = Kernel::new(gpu, &module, entry, &ARGS);
+    let kernel = Kernel::new(gpu, &format!("{CLIP_WGSL}\n{KERNELS}"), entry);
     let params = gpu.uniform(&Params {
         n: n as u32,
         pad: [0; 3],
@@ -125,13 +125,19 @@ fn run(
     kernel.dispatch(
         gpu,
         &mut encoder,
-        &[&params, inputs[0], inputs[1], &out],
+        &[
+            ("clip_params", &params),
+            ("clip_in0", inputs[0]),
+            ("clip_in1", inputs[1]),
+            ("clip_out", &out),
+        ],
         n as u64,
     );
     gpu.submit(encoder);
     gpu.download(&out, n * out_words)
 }
 
+#[cfg(feature = "testing")]
 /// `clipped_bounds(&tris[i], &boxes[i])` for every i, computed on the GPU, with the kernel's
 /// own empty flag (which must equal `is_empty()` of the box).
 pub fn clip_triangles(
@@ -159,6 +165,7 @@ pub fn clip_triangles(
         .collect())
 }
 
+#[cfg(feature = "testing")]
 /// What the library's soft-f64 operations give for one case `(a, b, c)` (see [`f64_ops`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct F64Ops {
@@ -180,6 +187,7 @@ pub struct F64Ops {
     pub widened: f64,
 }
 
+#[cfg(feature = "testing")]
 /// Runs every soft-f64 operation of the library on each case `(a, b, c)` (finite values), for
 /// tests against the CPU's own f64 arithmetic.
 pub fn f64_ops(gpu: &Gpu, cases: &[(f64, f64, f32)]) -> Result<Vec<F64Ops>, GpuError> {

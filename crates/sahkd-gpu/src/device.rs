@@ -35,9 +35,17 @@ pub struct Gpu {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub adapter: wgpu::AdapterInfo,
-    /// The largest storage binding the device allows (128 MiB on lavapipe).
+    /// The largest storage binding the device allows, in bytes (128 MiB on lavapipe). An
+    /// array larger than this is bound as several sub-ranges of its buffer (see
+    /// [`crate::Kernel::dispatch`]).
     pub max_binding: u64,
-    errors: Arc<Mutex<Vec<String>>>,
+    /// The largest buffer the device allows, in bytes: the ceiling of one array.
+    pub max_buffer: u64,
+    /// Offsets of bound sub-ranges are multiples of this (`min_storage_buffer_offset_alignment`).
+    pub offset_alignment: u64,
+    /// Storage bindings one kernel may have (an array split into parts takes one per part).
+    pub max_storage_bindings: u32,
+    pub(crate) errors: Arc<Mutex<Vec<String>>>,
 }
 
 impl Gpu {
@@ -59,15 +67,8 @@ impl Gpu {
             .request_adapter(&options)
             .await
             .map_err(|_| GpuError::NoAdapter { backends })?;
-        let limits = adapter.limits();
-        let required = wgpu::Limits {
-            max_storage_buffer_binding_size: limits.max_storage_buffer_binding_size,
-            max_buffer_size: limits.max_buffer_size,
-            max_storage_buffers_per_shader_stage: limits
-                .max_storage_buffers_per_shader_stage
-                .min(16),
-            ..wgpu::Limits::downlevel_defaults()
-        };
+        // The adapter's own limits, not the defaults: the largest bindings and buffers it has.
+        let required = adapter.limits();
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("sahkd"),
@@ -87,8 +88,23 @@ impl Gpu {
             adapter: adapter.get_info(),
             max_binding: (required.max_storage_buffer_binding_size as u64)
                 .min(required.max_buffer_size),
+            max_buffer: required.max_buffer_size,
+            offset_alignment: required.min_storage_buffer_offset_alignment as u64,
+            max_storage_bindings: required.max_storage_buffers_per_shader_stage,
             errors,
         })
+    }
+
+    /// Lowers the largest binding to `bytes` (tests: arrays beyond it are split across
+    /// bindings as on a device whose bindings are that small).
+    #[cfg(test)]
+    pub(crate) fn limit_binding(&mut self, bytes: u64) {
+        self.max_binding = self.max_binding.min(bytes);
+    }
+
+    /// Records an error to be returned by the next [`Gpu::finish`].
+    pub(crate) fn report_error(&self, error: String) {
+        self.errors.lock().unwrap().push(error);
     }
 
     /// "name (backend, device type)", for reports.

@@ -9,7 +9,7 @@
 //!   [`sahkd::CostModel::split_cost`].
 //! - [`segmin`]: each node's best candidate (cheapest, then smallest position, then lowest
 //!   axis), by three rounds of atomic minima.
-//! - [`partition`]: the stable split of every node's references into its two children
+//! - `partition` (feature `testing`): the stable split of every node's references into its two children
 //!   (flags, scan, scatter).
 //! - [`clip`]: triangles clipped to boxes in software f64, bit for bit the CPU's clip.
 //! - [`sort`]: records sorted by a 3-word key (bitonic; steps within a tile in workgroup
@@ -19,10 +19,11 @@
 //! - [`level`]: the level builder itself, every option (clipping, axes, counting): the same
 //!   tree as the CPU's.
 //!
-//! On the host stay: the one-off presort of the nine root lists before the upload (0.1-0.4 s
-//! of a build on the host; a software driver would sort slower, a real GPU was not available
-//! to measure), the reference-budget check (one comparison per level, on totals the host reads
-//! anyway to size the next level), and turning the downloaded node records into `Node`s.
+//! The one-off presort of the nine root lists runs on the device on a GPU (the bitonic sort of
+//! [`sort`] over one record per list entry) and on the host on a CPU adapter such as lavapipe,
+//! where the host's sort is faster ([`Presort`]; the report says which ran). On the host stay:
+//! the reference-budget check (one comparison per level, on totals the host reads anyway to
+//! size the next level), and turning the downloaded node records into `Node`s.
 //! Scan counting is by binary searches in each node's sorted lists rather than the CPU's event
 //! scan: the same L, R, P per candidate, with no per-node serial sweep.
 //!
@@ -39,6 +40,7 @@ pub mod clip;
 mod device;
 mod kernel;
 pub mod level;
+#[cfg(feature = "testing")]
 pub mod partition;
 pub mod price;
 pub mod scan;
@@ -48,4 +50,10 @@ pub mod space_tree;
 
 pub use device::{Gpu, GpuError};
 pub use kernel::{Arg, Kernel};
-pub use level::{build, check_options, GpuBuild, GpuReport};
+pub use level::{build, build_with, check_options, GpuBuild, GpuReport, Presort};
+
+// Feature `testing` adds the host-data helpers that only the tests use (run one kernel over
+// arrays held on the host and read the result back: `scan::exclusive_scan`,
+// `segmin::best_candidates`, `price::price_candidates`, `clip::clip_triangles`,
+// `sort::sort_records`, `space_tree::run_space_tree`, the `partition` module); the crate's
+// own tests turn it on through its dev-dependency on itself.

@@ -1,7 +1,7 @@
 //! Stable split of every segment's elements into its left and right outputs: flags, one
 //! multi-pass scan, scatter (see `shaders/partition.wgsl`).
 
-use crate::kernel::{Arg, Kernel};
+use crate::kernel::Kernel;
 use crate::scan::Scan;
 use crate::{Gpu, GpuError};
 
@@ -34,17 +34,9 @@ pub struct Partition {
 
 impl Partition {
     pub fn new(gpu: &Gpu) -> Partition {
-        let flags = gpu.module("partition", include_str!("shaders/partition.wgsl"));
-        let scatter = gpu.module("scatter", include_str!("shaders/scatter.wgsl"));
-        use Arg::*;
         Partition {
-            flags: Kernel::new(gpu, &flags, "set_flags", &[Uniform, Read, Write]),
-            scatter: Kernel::new(
-                gpu,
-                &scatter,
-                "scatter",
-                &[Uniform, Read, Read, Read, Read, Read, Write],
-            ),
+            flags: Kernel::new(gpu, include_str!("shaders/partition.wgsl"), "set_flags"),
+            scatter: Kernel::new(gpu, include_str!("shaders/scatter.wgsl"), "scatter"),
             scan: Scan::new(gpu),
         }
     }
@@ -65,13 +57,25 @@ impl Partition {
             pad: [0; 3],
         });
         let flags = gpu.storage("partition flags", 2 * n + 2)?;
-        self.flags
-            .dispatch(gpu, encoder, &[&params, side, &flags], n as u64 + 1);
+        self.flags.dispatch(
+            gpu,
+            encoder,
+            &[("params", &params), ("side", side), ("flags", &flags)],
+            n as u64 + 1,
+        );
         self.scan.record(gpu, encoder, &flags, 2 * n + 2)?;
         self.scatter.dispatch(
             gpu,
             encoder,
-            &[&params, side, &flags, values, owner, segments, out],
+            &[
+                ("params", &params),
+                ("side", side),
+                ("flags", &flags),
+                ("values", values),
+                ("owner", owner),
+                ("segments", segments),
+                ("out", out),
+            ],
             n as u64,
         );
         Ok(())

@@ -1,8 +1,10 @@
 //! The SAH cost of every candidate plane of a level (see `shaders/price.wgsl` for how the f32
 //! operations are kept identical to [`sahkd::CostModel::split_cost`]).
 
-use crate::kernel::{Arg, Kernel};
-use crate::{Gpu, GpuError};
+use crate::kernel::Kernel;
+use crate::Gpu;
+#[cfg(feature = "testing")]
+use crate::GpuError;
 use sahkd::{Aabb, CostModel};
 
 #[repr(C)]
@@ -26,8 +28,38 @@ pub struct Layout {
     pub first2: usize,
 }
 
+/// Where a level's candidate layout lies on the device (byte offsets, in `buffer`, of the words
+/// holding the candidate count and the first of axis 1's and axis 2's blocks), when the host
+/// has not read it: launches are then sized by an upper bound ([`Layout::n`]) and the real
+/// values are copied into their parameters on the device.
+#[derive(Clone, Copy)]
+pub struct DeviceLayout<'a> {
+    pub buffer: &'a wgpu::Buffer,
+    pub n: u64,
+    pub first1: u64,
+    pub first2: u64,
+}
+
+impl DeviceLayout<'_> {
+    /// Records copies of the layout's words into `uniform` at the byte offsets `[n, first1,
+    /// first2]` (`None`: a word the parameters do not hold).
+    pub fn patch(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        uniform: &wgpu::Buffer,
+        at: [Option<u64>; 3],
+    ) {
+        for (from, to) in [self.n, self.first1, self.first2].into_iter().zip(at) {
+            if let Some(to) = to {
+                encoder.copy_buffer_to_buffer(self.buffer, from, uniform, to, 4);
+            }
+        }
+    }
+}
+
 pub struct Price {
     kernel: Kernel,
+    #[cfg(feature = "testing")]
     divide: Kernel,
 }
 
@@ -41,19 +73,11 @@ pub fn box_words(boxes: &[Aabb]) -> Vec<f32> {
 
 impl Price {
     pub fn new(gpu: &Gpu) -> Price {
-        let module = gpu.module("price", include_str!("shaders/price.wgsl"));
-        let args = [
-            Arg::Uniform,
-            Arg::Read,
-            Arg::Read,
-            Arg::Read,
-            Arg::Read,
-            Arg::Write,
-            Arg::Write,
-        ];
+        let source = include_str!("shaders/price.wgsl");
         Price {
-            kernel: Kernel::new(gpu, &module, "price", &args),
-            divide: Kernel::new(gpu, &module, "divide", &args),
+            kernel: Kernel::new(gpu, source, "price"),
+            #[cfg(feature = "testing")]
+            divide: Kernel::new(gpu, source, "divide"),
         }
     }
 
@@ -67,6 +91,7 @@ impl Price {
         encoder: &mut wgpu::CommandEncoder,
         model: &CostModel,
         layout: Layout,
+        on_device: Option<DeviceLayout>,
         [boxes, pos, owner, counts]: [&wgpu::Buffer; 4],
         [cost, packed]: [&wgpu::Buffer; 2],
     ) {
@@ -80,15 +105,27 @@ impl Price {
             first2: layout.first2 as u32,
             pad: 0,
         });
+        if let Some(d) = on_device {
+            d.patch(encoder, &params, [Some(16), Some(20), Some(24)]);
+        }
         self.kernel.dispatch(
             gpu,
             encoder,
-            &[&params, boxes, pos, owner, counts, cost, packed],
+            &[
+                ("params", &params),
+                ("boxes", boxes),
+                ("pos", pos),
+                ("owner", owner),
+                ("counts", counts),
+                ("cost", cost),
+                ("packed", packed),
+            ],
             layout.n as u64,
         );
     }
 }
 
+#[cfg(feature = "testing")]
 /// Prices candidates held on the host; returns `(cost, packed)` per candidate.
 pub fn price_candidates(
     gpu: &Gpu,
@@ -117,6 +154,7 @@ pub fn price_candidates(
         &mut encoder,
         model,
         layout,
+        None,
         [a, b, c, d],
         [&cost, &packed],
     );
@@ -124,6 +162,7 @@ pub fn price_candidates(
     Ok((gpu.download(&cost, n)?, gpu.download(&packed, n)?))
 }
 
+#[cfg(feature = "testing")]
 /// The shader's correctly rounded division on bit patterns `(a, b)`: the result's bits per
 /// pair (for tests of the kernel's arithmetic against the CPU's `a / b`).
 pub fn divide_bits(gpu: &Gpu, pairs: &[[u32; 2]]) -> Result<Vec<u32>, GpuError> {
@@ -149,13 +188,13 @@ pub fn divide_bits(gpu: &Gpu, pairs: &[[u32; 2]]) -> Result<Vec<u32>, GpuError> 
         gpu,
         &mut encoder,
         &[
-            &params,
-            &unused,
-            &unused,
-            &unused,
-            &operands,
-            &quotient,
-            &unused_out,
+            ("params", &params),
+            ("boxes", &unused),
+            ("pos", &unused),
+            ("owner", &unused),
+            ("counts", &operands),
+            ("cost", &quotient),
+            ("packed", &unused_out),
         ],
         n as u64,
     );

@@ -1,6 +1,6 @@
 //! Exclusive prefix sums over u32 buffers, in several passes (see `shaders/scan.wgsl`).
 
-use crate::kernel::{Arg, Kernel, GROUP};
+use crate::kernel::{Kernel, GROUP};
 
 /// Elements per workgroup (`BLOCK` in the shader: 4 per thread).
 const BLOCK: usize = 4 * GROUP as usize;
@@ -21,11 +21,10 @@ pub struct Scan {
 
 impl Scan {
     pub fn new(gpu: &Gpu) -> Scan {
-        let module = gpu.module("scan", include_str!("shaders/scan.wgsl"));
-        let args = [Arg::Uniform, Arg::Write, Arg::Write];
+        let source = include_str!("shaders/scan.wgsl");
         Scan {
-            blocks: Kernel::new(gpu, &module, "scan_blocks", &args),
-            add: Kernel::new(gpu, &module, "add_block_sums", &args),
+            blocks: Kernel::new(gpu, source, "scan_blocks"),
+            add: Kernel::new(gpu, source, "add_block_sums"),
         }
     }
 
@@ -48,17 +47,26 @@ impl Scan {
             n: n as u32,
             pad: [0; 3],
         });
-        self.blocks
-            .dispatch(gpu, encoder, &[&params, data, &sums], threads);
+        self.blocks.dispatch(
+            gpu,
+            encoder,
+            &[("params", &params), ("data", data), ("sums", &sums)],
+            threads,
+        );
         if blocks > 1 {
             self.record(gpu, encoder, &sums, blocks)?;
-            self.add
-                .dispatch(gpu, encoder, &[&params, data, &sums], threads);
+            self.add.dispatch(
+                gpu,
+                encoder,
+                &[("params", &params), ("data", data), ("sums", &sums)],
+                threads,
+            );
         }
         Ok(())
     }
 }
 
+#[cfg(feature = "testing")]
 /// Scans `values` on the GPU and returns the result (a convenience for tests and callers
 /// that hold the data on the host).
 pub fn exclusive_scan(gpu: &Gpu, values: &[u32]) -> Result<Vec<u32>, GpuError> {

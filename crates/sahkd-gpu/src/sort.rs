@@ -11,7 +11,7 @@
 //! scratch memory: past `n` the network sees virtual maxima that no comparator moves, so
 //! nothing is padded.
 
-use crate::kernel::{Arg, Kernel, GROUP};
+use crate::kernel::{Kernel, GROUP};
 use crate::{Gpu, GpuError};
 
 /// Records per workgroup tile (`TILE` in the shader).
@@ -40,9 +40,8 @@ pub struct Sort {
 
 impl Sort {
     pub fn new(gpu: &Gpu) -> Sort {
-        let module = gpu.module("sort", include_str!("shaders/sort.wgsl"));
-        let args = [Arg::Uniform, Arg::Write];
-        let k = |entry| Kernel::new(gpu, &module, entry, &args);
+        let source = include_str!("shaders/sort.wgsl");
+        let k = |entry| Kernel::new(gpu, source, entry);
         Sort {
             sort_tiles: k("sort_tiles"),
             merge_tiles: k("merge_tiles"),
@@ -85,8 +84,12 @@ impl Sort {
                 pad: [0; 3],
             })
         };
-        self.sort_tiles
-            .dispatch(gpu, encoder, &[&params(0, 0, 0), data], tiles);
+        self.sort_tiles.dispatch(
+            gpu,
+            encoder,
+            &[("params", &params(0, 0, 0)), ("data", data)],
+            tiles,
+        );
         let mut k = 2 * TILE;
         while k <= size {
             // The stage's steps at distances k/2 .. 512, the short phase first.
@@ -97,15 +100,19 @@ impl Sort {
                 self.global_phase.dispatch(
                     gpu,
                     encoder,
-                    &[&params(k, d, r), data],
+                    &[("params", &params(k, d, r)), ("data", data)],
                     size as u64 / 16,
                 );
                 m -= r;
                 d >>= r;
                 r = STEPS;
             }
-            self.merge_tiles
-                .dispatch(gpu, encoder, &[&params(k, 0, 0), data], tiles);
+            self.merge_tiles.dispatch(
+                gpu,
+                encoder,
+                &[("params", &params(k, 0, 0)), ("data", data)],
+                tiles,
+            );
             k *= 2;
         }
         Ok(())
@@ -114,6 +121,7 @@ impl Sort {
 
 impl Sort {
     /// Sorts host records on the GPU and returns them.
+    #[cfg(feature = "testing")]
     pub fn sort_records(&self, gpu: &Gpu, records: &[[u32; 4]]) -> Result<Vec<[u32; 4]>, GpuError> {
         let data = gpu.upload("sort data", records.as_flattened());
         let mut encoder = gpu.encoder();
@@ -127,6 +135,7 @@ impl Sort {
     }
 }
 
+#[cfg(feature = "testing")]
 /// Sorts `records` on the GPU and returns them (a convenience for tests and callers that hold
 /// the data on the host; it compiles the kernels, about 0.5 s on lavapipe, so reuse a [`Sort`]
 /// for more than one sort).

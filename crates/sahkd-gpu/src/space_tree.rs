@@ -22,10 +22,11 @@
 //! kernel do three of log n: at the bunny's root (about 600 spans cut per plane) that is 640
 //! steps per candidate against about 50 reads, so this pays only where planes cut few spans.
 
-use crate::kernel::{Arg, Kernel};
-use crate::price::{box_words, Layout};
+use crate::kernel::Kernel;
+use crate::price::{DeviceLayout, Layout};
 use crate::{Gpu, GpuError};
-use sahkd::Aabb;
+#[cfg(feature = "testing")]
+use {crate::price::box_words, sahkd::Aabb};
 
 #[repr(C)]
 #[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
@@ -85,30 +86,14 @@ impl SpaceTree {
     pub fn new(gpu: &Gpu) -> SpaceTree {
         let source = include_str!("shaders/space_tree.wgsl");
         let header = source.split("//! kernel ").next().unwrap_or_default();
-        let module = |name: &str| {
+        let kernel = |name: &str| {
             let body = section(source, name);
-            gpu.module(name, &format!("{header}{body}"))
+            Kernel::new(gpu, &format!("{header}{body}"), name)
         };
-        use Arg::*;
         SpaceTree {
-            leaves: Kernel::new(
-                gpu,
-                &module("leaves"),
-                "leaves",
-                &[Uniform, Read, Read, Read, Write, Write],
-            ),
-            heights: Kernel::new(
-                gpu,
-                &module("heights"),
-                "heights",
-                &[Uniform, Read, Read, Write],
-            ),
-            count: Kernel::new(
-                gpu,
-                &module("count"),
-                "count",
-                &[Uniform, Read, Read, Read, Read, Write, Write],
-            ),
+            leaves: kernel("leaves"),
+            heights: kernel("heights"),
+            count: kernel("count"),
         }
     }
 
@@ -136,12 +121,12 @@ impl SpaceTree {
             gpu,
             encoder,
             &[
-                &gpu.uniform(&p),
-                ref_boxes,
-                entries,
-                starts,
-                trees,
-                &slot_node,
+                ("params", &gpu.uniform(&p)),
+                ("ref_boxes", ref_boxes),
+                ("entries", entries),
+                ("starts", starts),
+                ("trees", trees),
+                ("slot_node", &slot_node),
             ],
             3 * refs as u64,
         );
@@ -152,7 +137,12 @@ impl SpaceTree {
             self.heights.dispatch(
                 gpu,
                 encoder,
-                &[&gpu.uniform(&p), starts, &slot_node, trees],
+                &[
+                    ("params", &gpu.uniform(&p)),
+                    ("starts", starts),
+                    ("slot_node", &slot_node),
+                    ("trees", trees),
+                ],
                 3 * p.windows as u64,
             );
         }
@@ -170,6 +160,7 @@ impl SpaceTree {
         nodes: usize,
         refs: usize,
         cands: Layout,
+        on_device: Option<DeviceLayout>,
         [starts, trees, cand_pos, cand_owner]: [&wgpu::Buffer; 4],
         counts: &wgpu::Buffer,
         stats: &wgpu::Buffer,
@@ -186,17 +177,21 @@ impl SpaceTree {
             first2: cands.first2 as u32,
             ..Params::default()
         };
+        let params = gpu.uniform(&p);
+        if let Some(d) = on_device {
+            d.patch(encoder, &params, [Some(8), Some(12), Some(16)]);
+        }
         self.count.dispatch(
             gpu,
             encoder,
             &[
-                &gpu.uniform(&p),
-                starts,
-                trees,
-                cand_pos,
-                cand_owner,
-                counts,
-                stats,
+                ("params", &params),
+                ("starts", starts),
+                ("trees", trees),
+                ("cand_pos", cand_pos),
+                ("cand_owner", cand_owner),
+                ("counts", counts),
+                ("stats", stats),
             ],
             cands.n as u64,
         );
@@ -215,6 +210,7 @@ fn section<'a>(source: &'a str, name: &str) -> &'a str {
         .unwrap_or_else(|| panic!("kernel {name} in space_tree.wgsl"))
 }
 
+#[cfg(feature = "testing")]
 /// What a whole run on host data gives: the trees, the counts, the counters.
 pub struct HostRun {
     pub trees: Vec<TreeNode>,
@@ -222,6 +218,7 @@ pub struct HostRun {
     pub stats: WalkStats,
 }
 
+#[cfg(feature = "testing")]
 /// Builds the trees and counts `cands` (position, owner; holes owned by `u32::MAX`, axis
 /// blocks starting at `first1` and `first2`) on the GPU, from host data laid out as the
 /// buffers of this module (`ref_boxes` indexed by the reference ids of `entries`).
@@ -271,6 +268,7 @@ pub fn run_space_tree(
         nodes,
         refs,
         layout,
+        None,
         [&starts, &trees, &pos, &owner],
         &counts,
         &stats,
@@ -284,6 +282,7 @@ pub fn run_space_tree(
     })
 }
 
+#[cfg(feature = "testing")]
 /// The counts of [`run_space_tree`] alone.
 #[allow(clippy::too_many_arguments)]
 pub fn count_space_tree(

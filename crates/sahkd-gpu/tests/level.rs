@@ -29,7 +29,8 @@ fn cpu_and_gpu_agree(gpu: &Gpu, name: &str, triangles: &[Triangle], options: &Bu
         cpu.report.levels.len(),
         "{name}: levels"
     );
-    assert_eq!(built.report.round_trips, 2 * built.report.levels);
+    // One read per level: the decision's totals (the candidate layout stays on the device).
+    assert_eq!(built.report.round_trips, built.report.levels);
     assert!(
         cpu.tree.nodes().len() > 1 || triangles.len() <= 1,
         "{name}: a real tree"

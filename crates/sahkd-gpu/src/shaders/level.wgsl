@@ -2,7 +2,9 @@
 // in front of every kernel below; each section opened by a kernel marker line is compiled as
 // its own module with only the bindings it uses.
 //
-// A kernel marked "with clip.wgsl" gets that library between this header and its body.
+// A kernel marked "with clip.wgsl" gets that library between this header and its body; every
+// module starts with prelude.wgsl (`thread_index`, `order_key`). Each launch binds its buffers
+// by the names declared here; a binding the kernel never writes is declared `read`.
 //
 // A level's references are a table in node order: per reference r its primitive
 // `ref_prim[r]`, its node `ref_node[r]` and its box `ref_boxes[6r..6r+6]` (lo.xyz, hi.xyz;
@@ -48,28 +50,14 @@ const RECORD: u32 = 4u;
 
 const HOLE: u32 = 0xffffffffu;
 
-fn thread_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
-    return (wid.y * nwg.x + wid.x) * 256u + lid;
-}
 
-// Integer key ordered like the float; -0 and +0 share one (as they compare equal), unlike the
-// key of segmin.wgsl, which only needs some order.
-fn order_key(bits: u32) -> u32 {
-    if (bits == 0x80000000u) {
-        return 0x80000000u;
-    }
-    if ((bits & 0x80000000u) != 0u) {
-        return ~bits;
-    }
-    return bits | 0x80000000u;
-}
 
 //! kernel axes_in_use
 // Per node: the axes it prices (0 for a leaf by size or depth) and, per axis, its candidate
 // capacity (two slots per reference), scanned next into the candidate layout.
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> boxes: array<f32>;
-@group(0) @binding(2) var<storage, read_write> starts: array<u32>;
+@group(0) @binding(1) var<storage, read> boxes: array<f32>;
+@group(0) @binding(2) var<storage, read> starts: array<u32>;
 @group(0) @binding(3) var<storage, read_write> uses: array<u32>;
 @group(0) @binding(4) var<storage, read_write> caps: array<u32>;
 
@@ -112,13 +100,13 @@ fn axes_in_use(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) n
 // Per (axis, reference of the lo list): the reference's lo and hi as candidates of its node
 // when strictly inside the node's box, holes otherwise (positions at -0 written +0).
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> ref_boxes: array<f32>;
-@group(0) @binding(2) var<storage, read_write> boxes: array<f32>;
-@group(0) @binding(3) var<storage, read_write> starts: array<u32>;
-@group(0) @binding(4) var<storage, read_write> entries: array<u32>;
-@group(0) @binding(5) var<storage, read_write> ref_node: array<u32>;
-@group(0) @binding(6) var<storage, read_write> uses: array<u32>;
-@group(0) @binding(7) var<storage, read_write> caps: array<u32>;
+@group(0) @binding(1) var<storage, read> ref_boxes: array<f32>;
+@group(0) @binding(2) var<storage, read> boxes: array<f32>;
+@group(0) @binding(3) var<storage, read> starts: array<u32>;
+@group(0) @binding(4) var<storage, read> entries: array<u32>;
+@group(0) @binding(5) var<storage, read> ref_node: array<u32>;
+@group(0) @binding(6) var<storage, read> uses: array<u32>;
+@group(0) @binding(7) var<storage, read> caps: array<u32>;
 @group(0) @binding(8) var<storage, read_write> cand_pos: array<u32>;
 @group(0) @binding(9) var<storage, read_write> cand_owner: array<u32>;
 
@@ -159,11 +147,11 @@ fn candidates(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nw
 // Per candidate: L = #(lo < p), R = #(hi > p), P = #(lo == p == hi) in its node, by binary
 // searches of the node's sorted segments.
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> ref_boxes: array<f32>;
-@group(0) @binding(2) var<storage, read_write> starts: array<u32>;
-@group(0) @binding(3) var<storage, read_write> entries: array<u32>;
-@group(0) @binding(4) var<storage, read_write> cand_pos: array<f32>;
-@group(0) @binding(5) var<storage, read_write> cand_owner: array<u32>;
+@group(0) @binding(1) var<storage, read> ref_boxes: array<f32>;
+@group(0) @binding(2) var<storage, read> starts: array<u32>;
+@group(0) @binding(3) var<storage, read> entries: array<u32>;
+@group(0) @binding(4) var<storage, read> cand_pos: array<f32>;
+@group(0) @binding(5) var<storage, read> cand_owner: array<u32>;
 @group(0) @binding(6) var<storage, read_write> counts: array<u32>;
 
 // How many entries of node k's segment of list j have value (lo or hi on axis a) below p, or
@@ -224,12 +212,12 @@ fn fill(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec
 // level is not forced to leaves by the reference budget); the per-node values that the scans
 // turn into child ranks, leaf reference offsets and the next level's reference count.
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> uses: array<u32>;
-@group(0) @binding(2) var<storage, read_write> starts: array<u32>;
-@group(0) @binding(3) var<storage, read_write> best: array<u32>;
-@group(0) @binding(4) var<storage, read_write> cost: array<u32>;
-@group(0) @binding(5) var<storage, read_write> packed: array<u32>;
-@group(0) @binding(6) var<storage, read_write> cand_pos: array<u32>;
+@group(0) @binding(1) var<storage, read> uses: array<u32>;
+@group(0) @binding(2) var<storage, read> starts: array<u32>;
+@group(0) @binding(3) var<storage, read> best: array<u32>;
+@group(0) @binding(4) var<storage, read> cost: array<u32>;
+@group(0) @binding(5) var<storage, read> packed: array<u32>;
+@group(0) @binding(6) var<storage, read> cand_pos: array<u32>;
 // Per node: split (0/1), axis, position bits, planar_left.
 @group(0) @binding(7) var<storage, read_write> split: array<u32>;
 @group(0) @binding(8) var<storage, read_write> split_scan: array<u32>;
@@ -278,12 +266,12 @@ fn decide(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: v
 // it is "moved": its list entries are dropped from the partition and rebuilt from the clipped
 // boxes (`regen_count` of them, scanned into the records' offsets).
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> ref_boxes: array<f32>;
-@group(0) @binding(2) var<storage, read_write> ref_prim: array<u32>;
-@group(0) @binding(3) var<storage, read_write> ref_node: array<u32>;
-@group(0) @binding(4) var<storage, read_write> triangles: array<f32>;
-@group(0) @binding(5) var<storage, read_write> boxes: array<f32>;
-@group(0) @binding(6) var<storage, read_write> split: array<u32>;
+@group(0) @binding(1) var<storage, read> ref_boxes: array<f32>;
+@group(0) @binding(2) var<storage, read> ref_prim: array<u32>;
+@group(0) @binding(3) var<storage, read> ref_node: array<u32>;
+@group(0) @binding(4) var<storage, read> triangles: array<f32>;
+@group(0) @binding(5) var<storage, read> boxes: array<f32>;
+@group(0) @binding(6) var<storage, read> split: array<u32>;
 @group(0) @binding(7) var<storage, read_write> go_l: array<u32>;
 @group(0) @binding(8) var<storage, read_write> go_r: array<u32>;
 @group(0) @binding(9) var<storage, read_write> moved: array<u32>;
@@ -370,11 +358,11 @@ fn sides(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: ve
 // Per entry of every list: whether it goes to its node's left child, right child, or both, as
 // its reference does; entries of moved references go nowhere (they are rebuilt).
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> entries: array<u32>;
-@group(0) @binding(2) var<storage, read_write> moved: array<u32>;
+@group(0) @binding(1) var<storage, read> entries: array<u32>;
+@group(0) @binding(2) var<storage, read> moved: array<u32>;
 // The scanned `go_l`, `go_r` of `sides`.
-@group(0) @binding(3) var<storage, read_write> go_l: array<u32>;
-@group(0) @binding(4) var<storage, read_write> go_r: array<u32>;
+@group(0) @binding(3) var<storage, read> go_l: array<u32>;
+@group(0) @binding(4) var<storage, read> go_r: array<u32>;
 @group(0) @binding(5) var<storage, read_write> lflags: array<u32>;
 @group(0) @binding(6) var<storage, read_write> rflags: array<u32>;
 
@@ -401,10 +389,10 @@ fn classify(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg:
 // Per node, its output record: (3, first reference, count) for a leaf, (axis, position bits,
 // left child) for an interior node; the children of a level follow it, in parent order.
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> starts: array<u32>;
-@group(0) @binding(2) var<storage, read_write> split: array<u32>;
-@group(0) @binding(3) var<storage, read_write> split_scan: array<u32>;
-@group(0) @binding(4) var<storage, read_write> leaf_scan: array<u32>;
+@group(0) @binding(1) var<storage, read> starts: array<u32>;
+@group(0) @binding(2) var<storage, read> split: array<u32>;
+@group(0) @binding(3) var<storage, read> split_scan: array<u32>;
+@group(0) @binding(4) var<storage, read> leaf_scan: array<u32>;
 @group(0) @binding(5) var<storage, read_write> out_nodes: array<u32>;
 
 @compute @workgroup_size(256)
@@ -428,11 +416,11 @@ fn emit_nodes(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nw
 //! kernel emit_refs
 // Per reference of a leaf: its primitive, at the leaf's offset.
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> starts: array<u32>;
-@group(0) @binding(2) var<storage, read_write> ref_prim: array<u32>;
-@group(0) @binding(3) var<storage, read_write> ref_node: array<u32>;
-@group(0) @binding(4) var<storage, read_write> split: array<u32>;
-@group(0) @binding(5) var<storage, read_write> leaf_scan: array<u32>;
+@group(0) @binding(1) var<storage, read> starts: array<u32>;
+@group(0) @binding(2) var<storage, read> ref_prim: array<u32>;
+@group(0) @binding(3) var<storage, read> ref_node: array<u32>;
+@group(0) @binding(4) var<storage, read> split: array<u32>;
+@group(0) @binding(5) var<storage, read> leaf_scan: array<u32>;
 @group(0) @binding(6) var<storage, read_write> out_refs: array<u32>;
 
 @compute @workgroup_size(256)
@@ -454,15 +442,15 @@ fn emit_refs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg
 // references before its sibling's), with its box there (clipped for a moved reference), and
 // its new id, which the list entries take.
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> starts: array<u32>;
-@group(0) @binding(2) var<storage, read_write> ref_prim: array<u32>;
-@group(0) @binding(3) var<storage, read_write> ref_node: array<u32>;
-@group(0) @binding(4) var<storage, read_write> ref_boxes: array<f32>;
-@group(0) @binding(5) var<storage, read_write> moved: array<u32>;
-@group(0) @binding(6) var<storage, read_write> clip_boxes: array<f32>;
-@group(0) @binding(7) var<storage, read_write> go_l: array<u32>;
-@group(0) @binding(8) var<storage, read_write> go_r: array<u32>;
-@group(0) @binding(9) var<storage, read_write> split_scan: array<u32>;
+@group(0) @binding(1) var<storage, read> starts: array<u32>;
+@group(0) @binding(2) var<storage, read> ref_prim: array<u32>;
+@group(0) @binding(3) var<storage, read> ref_node: array<u32>;
+@group(0) @binding(4) var<storage, read> ref_boxes: array<f32>;
+@group(0) @binding(5) var<storage, read> moved: array<u32>;
+@group(0) @binding(6) var<storage, read> clip_boxes: array<f32>;
+@group(0) @binding(7) var<storage, read> go_l: array<u32>;
+@group(0) @binding(8) var<storage, read> go_r: array<u32>;
+@group(0) @binding(9) var<storage, read> split_scan: array<u32>;
 @group(0) @binding(10) var<storage, read_write> next_prim: array<u32>;
 @group(0) @binding(11) var<storage, read_write> next_node: array<u32>;
 @group(0) @binding(12) var<storage, read_write> next_boxes: array<f32>;
@@ -509,14 +497,14 @@ fn scatter_refs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) 
 // Per moved reference: the records of its list entries in each child it goes to, at its offset
 // from the scanned `regen_count`; sorted next, they are merged into the children's lists.
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> ref_node: array<u32>;
-@group(0) @binding(2) var<storage, read_write> moved: array<u32>;
-@group(0) @binding(3) var<storage, read_write> clip_boxes: array<u32>;
-@group(0) @binding(4) var<storage, read_write> go_l: array<u32>;
-@group(0) @binding(5) var<storage, read_write> go_r: array<u32>;
-@group(0) @binding(6) var<storage, read_write> regen_scan: array<u32>;
-@group(0) @binding(7) var<storage, read_write> split_scan: array<u32>;
-@group(0) @binding(8) var<storage, read_write> new_id: array<u32>;
+@group(0) @binding(1) var<storage, read> ref_node: array<u32>;
+@group(0) @binding(2) var<storage, read> moved: array<u32>;
+@group(0) @binding(3) var<storage, read> clip_boxes: array<u32>;
+@group(0) @binding(4) var<storage, read> go_l: array<u32>;
+@group(0) @binding(5) var<storage, read> go_r: array<u32>;
+@group(0) @binding(6) var<storage, read> regen_scan: array<u32>;
+@group(0) @binding(7) var<storage, read> split_scan: array<u32>;
+@group(0) @binding(8) var<storage, read> new_id: array<u32>;
 @group(0) @binding(9) var<storage, read_write> records: array<u32>;
 
 @compute @workgroup_size(256)
@@ -556,13 +544,13 @@ fn regen_emit(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nw
 // groups before it land before it. One extra thread per list writes its end. Once per node,
 // the children's boxes and parent.
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> boxes: array<f32>;
-@group(0) @binding(2) var<storage, read_write> starts: array<u32>;
-@group(0) @binding(3) var<storage, read_write> split: array<u32>;
-@group(0) @binding(4) var<storage, read_write> split_scan: array<u32>;
-@group(0) @binding(5) var<storage, read_write> lscan: array<u32>;
-@group(0) @binding(6) var<storage, read_write> rscan: array<u32>;
-@group(0) @binding(7) var<storage, read_write> records: array<u32>;
+@group(0) @binding(1) var<storage, read> boxes: array<f32>;
+@group(0) @binding(2) var<storage, read> starts: array<u32>;
+@group(0) @binding(3) var<storage, read> split: array<u32>;
+@group(0) @binding(4) var<storage, read> split_scan: array<u32>;
+@group(0) @binding(5) var<storage, read> lscan: array<u32>;
+@group(0) @binding(6) var<storage, read> rscan: array<u32>;
+@group(0) @binding(7) var<storage, read> records: array<u32>;
 @group(0) @binding(8) var<storage, read_write> next_starts: array<u32>;
 @group(0) @binding(9) var<storage, read_write> next_boxes: array<f32>;
 @group(0) @binding(10) var<storage, read_write> parent: array<u32>;
@@ -625,15 +613,15 @@ fn next_level(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nw
 // sorted records before it: those of earlier groups and those of its own group with a smaller
 // value (a record lands after the kept entries of equal value).
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> starts: array<u32>;
-@group(0) @binding(2) var<storage, read_write> entries: array<u32>;
-@group(0) @binding(3) var<storage, read_write> ref_node: array<u32>;
-@group(0) @binding(4) var<storage, read_write> ref_boxes: array<u32>;
-@group(0) @binding(5) var<storage, read_write> split_scan: array<u32>;
-@group(0) @binding(6) var<storage, read_write> lscan: array<u32>;
-@group(0) @binding(7) var<storage, read_write> rscan: array<u32>;
-@group(0) @binding(8) var<storage, read_write> records: array<u32>;
-@group(0) @binding(9) var<storage, read_write> new_id: array<u32>;
+@group(0) @binding(1) var<storage, read> starts: array<u32>;
+@group(0) @binding(2) var<storage, read> entries: array<u32>;
+@group(0) @binding(3) var<storage, read> ref_node: array<u32>;
+@group(0) @binding(4) var<storage, read> ref_boxes: array<u32>;
+@group(0) @binding(5) var<storage, read> split_scan: array<u32>;
+@group(0) @binding(6) var<storage, read> lscan: array<u32>;
+@group(0) @binding(7) var<storage, read> rscan: array<u32>;
+@group(0) @binding(8) var<storage, read> records: array<u32>;
+@group(0) @binding(9) var<storage, read> new_id: array<u32>;
 @group(0) @binding(10) var<storage, read_write> out_entries: array<u32>;
 
 // Records ordered before (group g, value key).
@@ -691,13 +679,13 @@ fn scatter(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: 
 // kept entries before its segment and those of its segment of at most its value (found by a
 // binary search of the parent's sorted segment, counted by the scanned flags).
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> starts: array<u32>;
-@group(0) @binding(2) var<storage, read_write> entries: array<u32>;
-@group(0) @binding(3) var<storage, read_write> ref_boxes: array<f32>;
-@group(0) @binding(4) var<storage, read_write> lscan: array<u32>;
-@group(0) @binding(5) var<storage, read_write> rscan: array<u32>;
-@group(0) @binding(6) var<storage, read_write> records: array<u32>;
-@group(0) @binding(7) var<storage, read_write> parent: array<u32>;
+@group(0) @binding(1) var<storage, read> starts: array<u32>;
+@group(0) @binding(2) var<storage, read> entries: array<u32>;
+@group(0) @binding(3) var<storage, read> ref_boxes: array<f32>;
+@group(0) @binding(4) var<storage, read> lscan: array<u32>;
+@group(0) @binding(5) var<storage, read> rscan: array<u32>;
+@group(0) @binding(6) var<storage, read> records: array<u32>;
+@group(0) @binding(7) var<storage, read> parent: array<u32>;
 @group(0) @binding(8) var<storage, read_write> out_entries: array<u32>;
 
 @compute @workgroup_size(256)
@@ -734,4 +722,20 @@ fn regen_place(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) n
         kept = lscan[end] + rscan[lo];
     }
     out_entries[i + kept] = records[RECORD * i + 2u];
+}
+
+//! kernel payloads
+// The device presort's last step: list entry i is the primitive of sorted record i (records
+// `(list, value key, primitive, primitive)`, see level/presort.rs).
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> records: array<u32>;
+@group(0) @binding(2) var<storage, read_write> out_entries: array<u32>;
+
+@compute @workgroup_size(256)
+fn payloads(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let i = thread_index(wid, nwg, lid);
+    if (i >= params.entries) {
+        return;
+    }
+    out_entries[i] = records[RECORD * i + 3u];
 }

@@ -19,7 +19,7 @@ fn set_flags(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let i = (wid.y * nwg.x + wid.x) * 256u + lid;
+    let i = thread_index(wid, nwg, lid);
     if (i > params.n) {
         return;
     }

@@ -147,17 +147,6 @@ fn split_cost(k: u32, axis: u32, p: f32, nl: u32, nr: u32) -> f32 {
     return mul(bonus, params.traversal + div(mul(params.intersection, sum), area));
 }
 
-// Integer key ordered like the float (compared as integers: no finite-math assumption applies);
-// -0 and +0 share a key, as they compare equal.
-fn order_key(bits: u32) -> u32 {
-    if (bits == 0x80000000u) {
-        return 0x80000000u;
-    }
-    if ((bits & 0x80000000u) != 0u) {
-        return ~bits;
-    }
-    return bits | 0x80000000u;
-}
 
 fn finite_or_inf(x: f32) -> u32 {
     let bits = bitcast<u32>(x);
@@ -173,7 +162,7 @@ fn price(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let i = (wid.y * nwg.x + wid.x) * 256u + lid;
+    let i = thread_index(wid, nwg, lid);
     if (i >= params.n) {
         return;
     }
@@ -214,7 +203,7 @@ fn divide(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let i = (wid.y * nwg.x + wid.x) * 256u + lid;
+    let i = thread_index(wid, nwg, lid);
     if (i >= params.n) {
         return;
     }

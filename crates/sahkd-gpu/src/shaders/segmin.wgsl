@@ -15,16 +15,7 @@ struct Params { n: u32, pad0: u32, pad1: u32, pad2: u32 }
 
 const HOLE: u32 = 0xffffffffu;
 
-fn order_key(bits: u32) -> u32 {
-    if ((bits & 0x80000000u) != 0u) {
-        return ~bits;
-    }
-    return bits | 0x80000000u;
-}
 
-fn index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
-    return (wid.y * nwg.x + wid.x) * 256u + lid;
-}
 
 @compute @workgroup_size(256)
 fn min_cost(
@@ -32,7 +23,7 @@ fn min_cost(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let i = index(wid, nwg, lid);
+    let i = thread_index(wid, nwg, lid);
     if (i >= params.n || owner[i] == HOLE) {
         return;
     }
@@ -45,7 +36,7 @@ fn min_pos(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let i = index(wid, nwg, lid);
+    let i = thread_index(wid, nwg, lid);
     if (i >= params.n || owner[i] == HOLE) {
         return;
     }
@@ -61,7 +52,7 @@ fn min_index(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let i = index(wid, nwg, lid);
+    let i = thread_index(wid, nwg, lid);
     if (i >= params.n || owner[i] == HOLE) {
         return;
     }

@@ -39,9 +39,6 @@ const MAX: vec4<u32> = vec4<u32>(0xffffffffu, 0xffffffffu, 0xffffffffu, 0xffffff
 var<workgroup> tile: array<vec4<u32>, 512>;
 var<private> regs: array<vec4<u32>, 16>;
 
-fn thread_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
-    return (wid.y * nwg.x + wid.x) * 256u + lid;
-}
 
 // Whether a goes after b: lexicographic on the three key words, payload ignored; equal keys
 // never swap.

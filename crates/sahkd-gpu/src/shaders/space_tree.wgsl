@@ -36,9 +36,6 @@ struct TreeNode {
 
 const HOLE: u32 = 0xffffffffu;
 
-fn thread_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
-    return (wid.y * nwg.x + wid.x) * 256u + lid;
-}
 
 //! kernel leaves
 // Per slot: its span (height 0: max = hi), and the node whose segment holds it, which the
@@ -117,7 +114,8 @@ fn build_slot(a: u32, k: u32, x0: u32, x1: u32) {
     let base = a * params.refs + s;
     let half = 1u << (h - 1u);
     let below = max(trees[base + i - half - 1u].max, subtree_max(base, n, i + half));
-    trees[base + i - 1u].max = max(trees[base + i - 1u].hi, below);
+    let slot = trees[base + i - 1u];
+    trees[base + i - 1u] = TreeNode(slot.lo, slot.hi, max(slot.hi, below));
 }
 
 @compute @workgroup_size(256)
