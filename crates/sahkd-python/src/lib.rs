@@ -37,7 +37,8 @@ const RAY_CHUNK: usize = 256;
 ///
 /// vertices: (V, 3) float32 or float64 array; faces: (F, 3) array of any integer type,
 /// every index in 0..V. Other memory layouts (slices, transposes) are read in place.
-/// algorithm: "level" (the parallel level-by-level builder), "sweep" (the serial reference
+/// algorithm: "hybrid" (the default: level passes at the top, then subtrees by the sweep on
+/// every core), "level" (the paper's parallel level-by-level builder), "sweep" (the serial reference
 /// builder), "naive" or "median" (Zhou et al.'s spatial-median builder). axes: "longest" or "all"; counting: "scan" or "space-tree" (None:
 /// the library defaults, shown in .stats). clip: clip straddling triangles to each child
 /// ("perfect splits"). threads: worker threads for the build and for every query of this
@@ -258,7 +259,7 @@ impl PyKdTree {
     #[new]
     #[pyo3(
         signature = (vertices, faces, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost),
-        text_signature = "(vertices, faces, algorithm='level', axes=None, counting=None, clip=True, threads=None, bins=0, **cost)"
+        text_signature = "(vertices, faces, algorithm='hybrid', axes=None, counting=None, clip=True, threads=None, bins=0, **cost)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -276,7 +277,7 @@ impl PyKdTree {
         let threads = threads_arg(options::int_arg(threads, "threads")?)?;
         let algorithm = options::str_arg(algorithm, "algorithm")?;
         let options = options::build_options(
-            algorithm.as_deref().unwrap_or("level"),
+            algorithm.as_deref().unwrap_or("hybrid"),
             options::str_arg(axes, "axes")?.as_deref(),
             options::str_arg(counting, "counting")?.as_deref(),
             options::bool_arg(clip, "clip", true)?,

@@ -169,7 +169,7 @@ impl PyScene {
     /// Builds the tree over every placed triangle; options as for KdTree.
     #[pyo3(
         signature = (algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost),
-        text_signature = "(self, algorithm='level', axes=None, counting=None, clip=True, threads=None, bins=0, **cost)"
+        text_signature = "(self, algorithm='hybrid', axes=None, counting=None, clip=True, threads=None, bins=0, **cost)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn build(
@@ -186,7 +186,7 @@ impl PyScene {
         let threads = threads_arg(options::int_arg(threads, "threads")?)?;
         let algorithm = options::str_arg(algorithm, "algorithm")?;
         let options = options::build_options(
-            algorithm.as_deref().unwrap_or("level"),
+            algorithm.as_deref().unwrap_or("hybrid"),
             options::str_arg(axes, "axes")?.as_deref(),
             options::str_arg(counting, "counting")?.as_deref(),
             options::bool_arg(clip, "clip", true)?,

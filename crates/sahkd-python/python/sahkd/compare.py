@@ -217,7 +217,7 @@ def main(argv=None):
     p.add_argument("mesh", help="a mesh file (PLY; anything trimesh reads if installed)")
     p.add_argument("--size", type=int, default=1024, help="image side in pixels (default 1024)")
     p.add_argument("--threads", type=int, default=None, help="sahkd's threads (default: all)")
-    p.add_argument("--algorithm", default="level", help="sahkd's builder (default level)")
+    p.add_argument("--algorithm", default="hybrid", help="sahkd's builder (default hybrid)")
     p.add_argument("--repeat", type=int, default=3, help="casts timed per library (median)")
     p.add_argument("--tolerance", type=float, default=1e-4, help="relative t tolerance")
     p.add_argument("--trimesh-rays", type=int, default=4096, help="rays cast by trimesh")
