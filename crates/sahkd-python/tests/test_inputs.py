@@ -74,7 +74,7 @@ def test_bad_meshes_are_refused_clearly(vertices, faces, error, message):
         (dict(algorithm="sweep", bins=1), ValueError, r"bins must be 0 \(exact SAH\) or from 2 to 1024, got 1$"),
         (dict(algorithm="hybrid", bins=1025), ValueError, r"bins must be 0 .* got 1025"),
         (dict(algorithm="sweep", bins=-4), ValueError, r"bins must be 0 .* got -4"),
-        (dict(bins=16), ValueError, r"bins works with the sweep and hybrid builders only, not level"),
+        (dict(algorithm="level", bins=16), ValueError, r"bins works with the sweep and hybrid builders only, not level"),
         (dict(algorithm="median", bins=16), ValueError, r"bins works with .* not median"),
         (dict(algorithm="sweep", bins="16"), TypeError, r"bins must be an integer or None, got str"),
         (dict(algorithm="sweep", bins=True), TypeError, r"bins must be an integer or None, not a bool"),

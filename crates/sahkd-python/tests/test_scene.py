@@ -289,7 +289,7 @@ def test_bad_input_is_refused_clearly():
     scene.build()
     scene.intersect(o, d)
     with pytest.raises(ValueError, match=r"bins works with the sweep and hybrid builders only, not level"):
-        scene.build(bins=16)
+        scene.build(algorithm="level", bins=16)
     with pytest.raises(ValueError, match=r"bins must be 0 .* got 1"):
         scene.build(algorithm="hybrid", bins=1)
     scene.build(algorithm="hybrid", bins=2)
