@@ -58,6 +58,36 @@ fn algorithm(name: &str) -> Algorithm {
         .unwrap_or_else(|e| panic!("unknown builder {name} in results.json: {e}"))
 }
 
+/// Whether `ray` hits any of `triangles` (Möller-Trumbore in f64, every triangle tried).
+fn brute_force_hits(triangles: &[sahkd::Triangle], ray: &sahkd::Ray) -> bool {
+    let v = |p: sahkd::Vec3| [p[0] as f64, p[1] as f64, p[2] as f64];
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let (o, d) = (v(ray.origin), v(ray.direction));
+    triangles.iter().any(|t| {
+        let (a, b, c) = (v(t[0]), v(t[1]), v(t[2]));
+        let (e1, e2) = (sub(b, a), sub(c, a));
+        let p = cross(d, e2);
+        let det = dot(e1, p);
+        if det.abs() < 1e-12 {
+            return false;
+        }
+        let s = sub(o, a);
+        let u = dot(s, p) / det;
+        let q = cross(s, e1);
+        let w = dot(d, q) / det;
+        let t = dot(e2, q) / det;
+        u >= 0.0 && w >= 0.0 && u + w <= 1.0 && t >= ray.t_min as f64 && t <= ray.t_max as f64
+    })
+}
+
 fn f(v: &Value) -> f64 {
     v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
 }
@@ -142,10 +172,27 @@ fn bench_writes_every_file_and_its_trees_are_the_librarys() {
         }
         let rays = scene["rays"].as_array().unwrap();
         assert_eq!(rays.len(), if naive_skipped { 4 } else { 5 }, "{spec}");
+        // One shadow and one bounce ray per primary hit of the same 40 x 30 picture, counted
+        // here by brute force over every triangle.
+        let tree = build(&mesh, &BuildOptions::default()).unwrap().tree;
+        let camera = sahkd::render::Camera::front(tree.bounds());
+        let hits = (0..30)
+            .flat_map(|y| (0..40).map(move |x| (x, y)))
+            .filter(|&(x, y)| {
+                let ray = camera.primary_ray(40, 30, x as f32 + 0.5, y as f32 + 0.5);
+                brute_force_hits(tree.triangles(), &ray)
+            })
+            .count();
+        assert!(hits > 0 && hits < 40 * 30, "{spec}: {hits} hits");
         for r in rays {
             assert_eq!(r["primary"]["rays"], 40 * 30, "{r}");
             check_spread(&r["primary_mrays"], 2);
             check_spread(&r["ao_mrays"], 2);
+            check_spread(&r["shadow_mrays"], 2);
+            check_spread(&r["bounce_mrays"], 2);
+            assert_eq!(r["shadow"]["rays"], hits, "{r}");
+            assert_eq!(r["bounce"]["rays"], hits, "{r}");
+            assert!(f(&r["bounce"]["nodes_per_ray"]) > 0.0, "{r}");
             let ao = r["ao"]["rays"].as_u64().unwrap();
             assert!(ao > 0 && ao <= 16 * 16 * 3 && ao % 3 == 0, "{r}");
             // Some rays miss the scene box and visit no node; the counted ones hit it.

@@ -13,7 +13,8 @@
 //! `auto` the camera `sahkd render` picks (the mesh fills the frame; inside the building for
 //! Sponza). From every primary hit, moved off the surface as `sahkd render` does: one shadow
 //! ray to a point light (any hit), 8 cosine-weighted AO rays with t_max a tenth of the
-//! diagonal (any hit) and one cosine-weighted bounce ray (closest hit).
+//! diagonal (any hit) and one cosine-weighted bounce ray (closest hit): `sahkd::render::RaySets`,
+//! the sets `sahkd bench` times too.
 //!
 //! Each set is traced `--repeat` times in a rayon pool of each of the `--threads` counts
 //! (`KdTree::intersect_batch` / `occluded_batch`); the median and min-max Mrays/s are printed,
@@ -23,8 +24,8 @@
 //! `--dump DIR` writes the triangles, every set and sahkd's answers as `.npy` files for
 //! `scripts/embree_throughput.py`, which traces the very same rays with Embree.
 
-use sahkd::render::{facing_normal, Camera};
-use sahkd::{BuildOptions, Hit, KdTree, Mesh, Ray, TraceStats, Vec3};
+use sahkd::render::{Camera, Query, RaySet, RaySets};
+use sahkd::{BuildOptions, KdTree, Mesh, Ray, TraceStats};
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
@@ -100,72 +101,6 @@ fn parse_args() -> Result<Args, String> {
     Ok(args)
 }
 
-/// A hit point moved off its surface, on the side the ray came from, as `sahkd render` does,
-/// and the unit normal of that side.
-fn surface_point(tree: &KdTree, ray: &Ray, hit: &Hit) -> (Vec3, Vec3) {
-    let tri = &tree.triangles()[hit.prim as usize];
-    let normal = facing_normal(tri, ray);
-    let p = tri[0] * (1.0 - hit.u - hit.v) + tri[1] * hit.u + tri[2] * hit.v;
-    let magnitude = p[0].abs().max(p[1].abs()).max(p[2].abs());
-    let offset =
-        sahkd::render::OFFSET_SCALE * tree.bounds().diagonal() + 8.0 * f32::EPSILON * magnitude;
-    (p + normal * offset, normal)
-}
-
-/// A uniform number in [0, 1) from a 64-bit key (splitmix64's finaliser), so every ray set is
-/// the same on every run and thread count.
-fn uniform(key: u64) -> f32 {
-    let mut z = key.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-}
-
-/// A cosine-weighted direction around unit `n` (a uniform point of the unit disc lifted to
-/// the hemisphere), from the ray key `key`.
-fn cosine_direction(n: Vec3, key: u64) -> Vec3 {
-    let (u1, u2) = (uniform(2 * key), uniform(2 * key + 1));
-    let t = if n[0].abs() > n[2].abs() {
-        Vec3::new(-n[1], n[0], 0.0)
-    } else {
-        Vec3::new(0.0, -n[2], n[1])
-    }
-    .normalized();
-    let b = n.cross(t);
-    let r = u1.sqrt();
-    let phi = 2.0 * std::f32::consts::PI * u2;
-    (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()).normalized()
-}
-
-/// AO rays per primary hit.
-const AO_RAYS: u64 = 8;
-
-/// The secondary rays of every primary hit: the shadow ray to the point light (any hit,
-/// direction = light - origin, t in [0, 1)), `AO_RAYS` cosine-weighted ambient-occlusion rays
-/// (any hit, t_max a tenth of the scene diagonal) and one cosine-weighted bounce ray
-/// (closest hit).
-fn secondary_rays(
-    tree: &KdTree,
-    light: Vec3,
-    primary: &[Ray],
-    hits: &[Option<Hit>],
-) -> (Vec<Ray>, Vec<Ray>, Vec<Ray>) {
-    let ao_reach = 0.1 * tree.bounds().diagonal();
-    let (mut shadow, mut ao, mut bounce) = (Vec::new(), Vec::new(), Vec::new());
-    for (i, (ray, hit)) in primary.iter().zip(hits).enumerate() {
-        let Some(hit) = hit else { continue };
-        let (p, n) = surface_point(tree, ray, hit);
-        // Just short of the light, which sits in empty space.
-        shadow.push(Ray::new(p, light - p).with_range(0.0, 1.0 - 1e-4));
-        let key = i as u64 * (AO_RAYS + 1);
-        for k in 0..AO_RAYS {
-            ao.push(Ray::new(p, cosine_direction(n, key + k)).with_range(0.0, ao_reach));
-        }
-        bounce.push(Ray::new(p, cosine_direction(n, key + AO_RAYS)));
-    }
-    (shadow, ao, bounce)
-}
-
 /// Median, min and max of Mrays/s over the repeats of `f`.
 fn throughput(rays: usize, repeat: usize, mut f: impl FnMut()) -> (f64, f64, f64) {
     let mut rates: Vec<f64> = (0..repeat)
@@ -208,28 +143,6 @@ fn ray_rows(rays: &[Ray]) -> Vec<f32> {
             [o[0], o[1], o[2], d[0], d[1], d[2], r.t_min, r.t_max]
         })
         .collect()
-}
-
-/// Closest hit or any hit.
-#[derive(Clone, Copy, PartialEq)]
-enum Query {
-    Closest,
-    Any,
-}
-
-impl Query {
-    fn name(self) -> &'static str {
-        match self {
-            Query::Closest => "closest",
-            Query::Any => "any",
-        }
-    }
-}
-
-struct RaySet {
-    name: &'static str,
-    query: Query,
-    rays: Vec<Ray>,
 }
 
 /// sahkd's answers to a set, as rows for the agreement check: `[t, triangle]` (inf and -1 for
@@ -295,54 +208,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let bounds = tree.bounds();
     let camera = match args.camera.as_str() {
         "front" => Camera::front(bounds),
-        "near" => Camera {
-            eye: bounds.centre() + Vec3::new(0.0, 0.0, 0.75 * bounds.diagonal()),
-            ..Camera::front(bounds)
-        },
+        "near" => Camera::near(bounds),
         "auto" => Camera::framing(&tree),
         other => return Err(format!("unknown camera {other:?} (front, near or auto)").into()),
     };
-    // A point light above and to the front left of the scene, or for a camera inside the
-    // scene's box (Sponza's `auto`) high up in the middle of the box.
-    let inside = (0..3).all(|a| camera.eye[a] > bounds.lo[a] && camera.eye[a] < bounds.hi[a]);
-    let light = if inside {
-        bounds.centre() + Vec3::new(0.0, 0.3 * bounds.extent()[1], 0.0)
-    } else {
-        bounds.centre() + Vec3::new(-0.3, 0.6, 0.4) * bounds.diagonal()
-    };
     let n = args.size;
-    let primary: Vec<Ray> = (0..n)
-        .flat_map(|y| (0..n).map(move |x| (x, y)))
-        .map(|(x, y)| camera.primary_ray(n, n, x as f32 + 0.5, y as f32 + 0.5))
-        .collect();
     // The first query makes the tree's trace layout; timed on its own.
     let start = Instant::now();
-    std::hint::black_box(tree.intersect(&primary[0]));
+    std::hint::black_box(tree.intersect(&camera.primary_ray(n, n, 0.5, 0.5)));
     let layout_seconds = start.elapsed().as_secs_f64();
-    let hits = tree.intersect_batch(&primary);
-    let (shadow, ao, bounce) = secondary_rays(&tree, light, &primary, &hits);
-    let sets = [
-        RaySet {
-            name: "primary",
-            query: Query::Closest,
-            rays: primary,
-        },
-        RaySet {
-            name: "shadow",
-            query: Query::Any,
-            rays: shadow,
-        },
-        RaySet {
-            name: "ao",
-            query: Query::Any,
-            rays: ao,
-        },
-        RaySet {
-            name: "bounce",
-            query: Query::Closest,
-            rays: bounce,
-        },
-    ];
+    let RaySets {
+        light,
+        inside,
+        sets,
+        ..
+    } = RaySets::new(&tree, camera, n, n);
     if let Some(dir) = &args.dump {
         dump(dir, &tree, &sets)?;
     }

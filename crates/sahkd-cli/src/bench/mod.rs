@@ -10,7 +10,10 @@ use crate::gpu::GpuReport;
 use crate::options::Builder;
 use anyhow::Result;
 use paper::PaperScene;
-use sahkd::render::{render, Camera, RayCounts, RenderOptions, Shading};
+use sahkd::render::{
+    render, Camera, Query, RayCounts, RaySet, RaySets, RenderOptions, Shading, COUNT_STRIDE,
+};
+use sahkd::TraceStats;
 use sahkd::{BuildOptions, KdTree, Mesh};
 use serde::Serialize;
 use std::time::Instant;
@@ -148,6 +151,7 @@ pub struct RaySettings {
     pub width: u32,
     pub height: u32,
     /// Ambient occlusion: a picture of ao_size x ao_size pixels, ao_samples rays per hit.
+    /// Shadow and bounce rays: one of each per primary hit (`sahkd::render::RaySets`).
     pub ao_size: u32,
     pub ao_samples: u32,
     pub threads: usize,
@@ -212,9 +216,16 @@ pub struct RayRow {
     /// Mrays/s of each of the `repeat` renders (after a warm-up render).
     pub primary_mrays: Spread,
     pub ao_mrays: Spread,
-    /// Counts of the last render (rays, nodes and triangles per ray are the same every time).
+    /// Mrays/s of each of the `repeat` batch calls on the shadow rays (any hit, to a point
+    /// light) and the bounce rays (closest hit, cosine-weighted) of the primary hits.
+    pub shadow_mrays: Spread,
+    pub bounce_mrays: Spread,
+    /// Counts of the last render or batch (rays, nodes and triangles per ray are the same
+    /// every time).
     pub primary: RayCounts,
     pub ao: RayCounts,
+    pub shadow: RayCounts,
+    pub bounce: RayCounts,
 }
 
 /// Fig. 1 for one builder: T_n for n = 1 ..= levels.
@@ -327,14 +338,56 @@ pub fn measure_rays(
             p.push(last.0.mrays_per_s);
             a.push(last.1.mrays_per_s);
         }
+        let sets = RaySets::new(tree, camera, rays.width, rays.height);
+        let [_, shadow, _, bounce] = &sets.sets;
+        let (shadow_mrays, shadow) = time_batches(tree, shadow, repeat);
+        let (bounce_mrays, bounce) = time_batches(tree, bounce, repeat);
         RayRow {
             algorithm,
             primary_mrays: Spread::of(p),
             ao_mrays: Spread::of(a),
+            shadow_mrays,
+            bounce_mrays,
             primary: last.0,
             ao: last.1,
+            shadow,
+            bounce,
         }
     })
+}
+
+/// Times the batch call of `set` `repeat` times after a warm-up (in the current pool), and
+/// counts nodes and triangles per ray over every `COUNT_STRIDE`-th ray, as `render` does.
+fn time_batches(tree: &KdTree, set: &RaySet, repeat: usize) -> (Spread, RayCounts) {
+    let trace = || {
+        let start = Instant::now();
+        match set.query {
+            Query::Closest => drop(std::hint::black_box(tree.intersect_batch(&set.rays))),
+            Query::Any => drop(std::hint::black_box(tree.occluded_batch(&set.rays))),
+        }
+        start.elapsed().as_secs_f64()
+    };
+    trace();
+    let seconds: Vec<f64> = (0..repeat.max(1)).map(|_| trace()).collect();
+    let mut stats = TraceStats::default();
+    for ray in set.rays.iter().step_by(COUNT_STRIDE as usize) {
+        match set.query {
+            Query::Closest => drop(tree.intersect_counted(ray, &mut stats)),
+            Query::Any => drop(tree.occluded_counted(ray, &mut stats)),
+        }
+    }
+    let rays = set.rays.len() as u64;
+    let rate = |s: f64| if s > 0.0 { rays as f64 / s / 1e6 } else { 0.0 };
+    let last = seconds[seconds.len() - 1];
+    let counted = set.rays.len().div_ceil(COUNT_STRIDE as usize).max(1) as f64;
+    let counts = RayCounts {
+        rays,
+        seconds: last,
+        mrays_per_s: rate(last),
+        nodes_per_ray: stats.nodes as f64 / counted,
+        triangles_per_ray: stats.triangles as f64 / counted,
+    };
+    (Spread::of(seconds.into_iter().map(rate).collect()), counts)
 }
 
 /// Seconds since `start`.

@@ -22,11 +22,15 @@
 //! the whole pool.
 
 mod camera;
+mod ray_sets;
 mod sampling;
 mod shading;
 
 pub use camera::Camera;
-pub use shading::{background, facing_normal, normal_colour, to_rgb8, Shading, SUN_DIRECTION};
+pub use ray_sets::{Query, RaySet, RaySets, AO_RAYS};
+pub use shading::{
+    background, facing_normal, normal_colour, surface_origin, to_rgb8, Shading, SUN_DIRECTION,
+};
 
 use crate::geometry::{Triangle, Vec3};
 use crate::trace::{Hit, Ray, TraceStats};
@@ -322,11 +326,7 @@ impl<'a> Context<'a> {
     /// How to shade a hit, and its occlusion rays appended to `rays`.
     fn prepare(&self, ray: &Ray, hit: &Hit, rng: SampleRng, rays: &mut Vec<Ray>) -> Pending {
         let tri = self.triangle(hit);
-        let normal = facing_normal(tri, ray);
-        let p = tri[0] * (1.0 - hit.u - hit.v) + tri[1] * hit.u + tri[2] * hit.v;
-        // Off the surface by a small part of the scene, plus a few f32 steps of the position.
-        let magnitude = p[0].abs().max(p[1].abs()).max(p[2].abs());
-        let origin = p + normal * (self.offset + 8.0 * f32::EPSILON * magnitude);
+        let (origin, normal) = surface_origin(tri, ray, hit, self.offset);
         match self.options.shading {
             Shading::Normal => Pending::Colour(normal_colour(tri, ray)),
             Shading::Diffuse => {

@@ -4,7 +4,7 @@
 //! the lit modes compute a light intensity and apply a display gamma of 2.2.
 
 use crate::geometry::{Triangle, Vec3};
-use crate::trace::Ray;
+use crate::trace::{Hit, Ray};
 use serde::{Deserialize, Serialize};
 
 /// How hits are coloured.
@@ -76,6 +76,20 @@ pub fn facing_normal(triangle: &Triangle, ray: &Ray) -> Vec3 {
     } else {
         n
     }
+}
+
+/// Where rays leaving a hit start, and the unit normal of the side the ray came from: the hit
+/// point moved off its surface by `offset` plus a few f32 steps of its position, so that the
+/// new rays do not hit the triangle they leave.
+pub fn surface_origin(triangle: &Triangle, ray: &Ray, hit: &Hit, offset: f32) -> (Vec3, Vec3) {
+    let normal = facing_normal(triangle, ray);
+    let [a, b, c] = *triangle;
+    let p = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+    let magnitude = p[0].abs().max(p[1].abs()).max(p[2].abs());
+    (
+        p + normal * (offset + 8.0 * f32::EPSILON * magnitude),
+        normal,
+    )
 }
 
 /// Normal shading of a hit triangle: `(n + 1) / 2` for the normal facing the ray.
