@@ -149,6 +149,9 @@ fn the_auto_camera_frames_the_scene_and_the_json_report_says_how() {
     assert_eq!(report["primary"]["rays"], 48 * 36);
     assert_eq!(report["occlusion"]["rays"], 0);
     assert!(report["primary"]["nodes_per_ray"].as_f64().unwrap() > 0.0);
+    for key in ["layout_ms", "render_ms"] {
+        assert!(report[key].as_f64().unwrap() >= 0.0, "{key}");
+    }
     let c = &report["camera"];
     let camera = Camera {
         eye: vector(&c["eye"]),

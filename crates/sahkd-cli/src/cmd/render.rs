@@ -161,6 +161,9 @@ struct Report<'a> {
     spp: u32,
     ao_samples: u32,
     camera: CameraReport,
+    /// Making the tree's trace layout, done once before the picture (not part of `render_ms`
+    /// nor of the rays' times).
+    layout_ms: f64,
     render_ms: f64,
     primary: RayCounts,
     occlusion: RayCounts,
@@ -181,6 +184,10 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
     if let Err(e) = options.validate() {
         bail!("cannot render: {e}");
     }
+
+    let start = Instant::now();
+    builder.install(|| built.build.tree.prepare_trace());
+    let layout_ms = start.elapsed().as_secs_f64() * 1e3;
 
     let bar = progress.bar(
         u64::from(options.width) * u64::from(options.height),
@@ -219,6 +226,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
                 up: array(camera.up),
                 fov_y_degrees: camera.fov_y_degrees,
             },
+            layout_ms,
             render_ms,
             primary: rays.primary,
             occlusion: rays.occlusion,
@@ -245,6 +253,7 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
                 camera.fov_y_degrees
             ),
         )
+        .row("trace layout", format::ms(layout_ms))
         .row("render time", format::ms(render_ms))
         .row("primary rays", ray_counts(&rays.primary, "camera"))
         .row(
