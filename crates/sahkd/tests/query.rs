@@ -471,3 +471,22 @@ fn mesh_vertices_are_at_distance_zero() {
         assert!(c.prim as usize <= i);
     }
 }
+
+/// Scenes outside float32's comfortable range are traced scaled by a power of two (see
+/// `geometry::scene_scale`); the closest point must be answered in the caller's coordinates all
+/// the same: a soup 1e7 across (millimetres of a 10 km scan) and one 1e-7 across.
+#[test]
+fn closest_points_of_scaled_scenes_match_brute_force() {
+    for (seed, factor) in [(21u64, 1e7f32), (22, 1e-7), (23, 3e12)] {
+        let mut rng = rng(seed);
+        let tris: Vec<Triangle> = random_triangles(&mut rng, 300)
+            .into_iter()
+            .map(|t| t.map(|v| v * factor))
+            .collect();
+        let points = query_points(&mut rng, &tris, 200);
+        let tree = build_triangles(tris, &BuildOptions::default())
+            .unwrap()
+            .tree;
+        check_closest(&tree, &points, &format!("soup scaled by {factor}"));
+    }
+}

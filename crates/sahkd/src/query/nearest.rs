@@ -71,15 +71,20 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
     if tree.triangles.is_empty() || !p.is_finite() {
         return None;
     }
+    // The walk reads the trace layout, whose coordinates are the tree's times `scale`, a
+    // power of two (1 unless the scene is too large or too small for float32): the point is
+    // scaled the same way, exactly in f64, and so is every distance, so the answer is the
+    // one of the unscaled triangles to the bit.
     let layout = tree.trace_layout();
-    let pd = d3(p);
-    let slack = slack(&tree.bounds, pd);
+    let scale = layout.scale as f64;
+    let pd = d3(p).map(|x| x * scale);
+    let slack = slack(&layout.bounds, pd);
     // Best so far: squared distance, triangle, weights; `limit` is the loosened bound.
     let mut best: Option<(f64, u32, [f64; 3])> = None;
     let mut limit = f64::INFINITY;
     let mut stack = [MaybeUninit::<Pending>::uninit(); MAX_DEPTH_CAP as usize + 4];
     let mut top = 0usize;
-    let b = &tree.bounds;
+    let b = &layout.bounds;
     let offset: [f64; 3] = std::array::from_fn(|a| {
         (b.lo[a] as f64 - pd[a])
             .max(pd[a] - b.hi[a] as f64)
@@ -120,7 +125,7 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
                 let left = node.left();
                 // The child holding the point first: it is as far as this node. The other is
                 // as far along this axis as the plane.
-                let (near, far) = if p[axis] < split {
+                let (near, far) = if pd[axis] < split as f64 {
                     (left, left + 1)
                 } else {
                     (left + 1, left)
@@ -150,6 +155,7 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
         current = unsafe { stack[top].assume_init() };
     }
     best.map(|(d2, prim, weights)| {
+        let d2 = d2 / (scale * scale);
         ClosestPoint::new(d2, prim, weights, &tree.triangles[prim as usize])
     })
 }
