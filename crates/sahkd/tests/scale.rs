@@ -159,6 +159,19 @@ fn check_scene(what: &str, tris: &[Triangle], rays: &[Ray], tol: f64) -> usize {
         assert_eq!(got, batch[i], "{what}: ray {i}: batch and single disagree");
         assert_eq!(got, brute::intersect(tris, ray), "{what}: ray {i}: brute");
         assert_eq!(tree.occluded(ray), got.is_some(), "{what}: ray {i}");
+        // Every hit (each triangle once, as the all-hits and parity queries use them).
+        let every = |walk: &dyn Fn(&mut dyn FnMut(Hit))| {
+            let mut hits = Vec::new();
+            walk(&mut |h| hits.push((h.prim, h.t.to_bits())));
+            hits.sort_unstable();
+            hits.dedup();
+            hits
+        };
+        assert_eq!(
+            every(&|f| tree.for_each_hit(ray, f)),
+            every(&|f| brute::for_each_hit(tris, ray, f)),
+            "{what}: ray {i}: every hit"
+        );
         if let Err(e) = check64(tris, ray, got.map(|h| (h.t as f64, h.prim)), tol) {
             errors.push(format!("ray {i} {ray:?}: {e}"));
         }
