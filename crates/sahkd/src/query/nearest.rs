@@ -12,10 +12,10 @@
 //! incremental distance of Arya and Mount), so the walk carries no boxes; a triangle is
 //! skipped without its exact test when its bounding box already lies beyond the bound.
 
-use super::triangle::{closest_on_triangle, d3, D3};
+use super::triangle::{closest_on_triangle, cross, d3, dot, sub, D3};
 use super::ClosestPoint;
 use crate::cost::MAX_DEPTH_CAP;
-use crate::geometry::{Aabb, Vec3};
+use crate::geometry::{Aabb, Triangle, Vec3};
 use crate::tree::KdTree;
 use std::mem::MaybeUninit;
 
@@ -55,6 +55,21 @@ pub(crate) fn slack(bounds: &Aabb, p: D3) -> f64 {
     SLACK * m
 }
 
+/// Slots of the per-query memory of triangles already tested (direct-mapped by index): a
+/// triangle clipped into several leaves is tested once while the walk stays near it.
+const TESTED: usize = 256;
+
+/// Whether the triangle's plane lies farther from `p` than `limit` (squared): then so does
+/// the triangle. The f64 rounding here is far below the bound's slack, so no triangle that
+/// could tie the best is skipped. A zero-area triangle has no plane and is never skipped.
+#[inline(always)]
+fn beyond_plane(p: D3, c: &Triangle, limit: f64) -> bool {
+    let a = d3(c[0]);
+    let n = cross(sub(d3(c[1]), a), sub(d3(c[2]), a));
+    let h = dot(n, sub(p, a));
+    h * h > limit * dot(n, n)
+}
+
 /// A node to visit: its squared distance from the point, and that distance's components
 /// along each axis (zero where the point lies within the node's extent), from which a
 /// child's distance follows without its box.
@@ -83,6 +98,7 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
     let mut best: Option<(f64, u32, [f64; 3])> = None;
     let mut limit = f64::INFINITY;
     let mut stack = [MaybeUninit::<Pending>::uninit(); MAX_DEPTH_CAP as usize + 4];
+    let mut tested = [u32::MAX; TESTED];
     let mut top = 0usize;
     let b = &layout.bounds;
     let offset: [f64; 3] = std::array::from_fn(|a| {
@@ -100,11 +116,18 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
             let node = &layout.nodes[current.node as usize];
             if node.is_leaf() {
                 for record in layout.leaf(node) {
-                    // The triangle's box bounds its distance from below: a cheap rejection
-                    // of most of a leaf's triangles once a good answer is known.
+                    // A triangle in several leaves needs no second look: it was either
+                    // tested or found beyond a bound, and the bound only shrinks.
+                    let slot = &mut tested[record.prim as usize % TESTED];
+                    if *slot == record.prim {
+                        continue;
+                    }
+                    *slot = record.prim;
+                    // The triangle's box and its plane bound its distance from below: cheap
+                    // rejections of most of a leaf's triangles once a good answer is known.
                     let c = &record.corners;
                     let tri_box = Aabb::new(c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
-                    if box_distance2(pd, &tri_box) > limit {
+                    if box_distance2(pd, &tri_box) > limit || beyond_plane(pd, c, limit) {
                         continue;
                     }
                     let found = closest_on_triangle(pd, &record.corners);
