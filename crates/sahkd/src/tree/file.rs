@@ -453,24 +453,36 @@ fn parse_meta(bytes: &[u8]) -> Result<TreeMeta, String> {
     })
 }
 
-/// Finite corners, spanning exactly the stored scene box.
+/// Finite corners, spanning exactly the stored scene box. Decoded first and checked after,
+/// in two plain loops the compiler vectorizes (one loop with an early return and a running
+/// box took 138 instructions a triangle).
 fn read_triangles(bytes: &[u8], bounds: &Aabb) -> Result<Vec<Triangle>, String> {
-    let mut triangles = Vec::with_capacity(bytes.len() / 36);
-    let mut span = Aabb::EMPTY;
-    for (i, t) in bytes.chunks_exact(36).enumerate() {
-        let c = |k: usize| f32::from_le_bytes(t[4 * k..4 * k + 4].try_into().expect("4 bytes"));
-        let v = |k: usize| Vec3([c(3 * k), c(3 * k + 1), c(3 * k + 2)]);
-        let tri = [v(0), v(1), v(2)];
-        if !tri.iter().all(|v| v.is_finite()) {
-            return Err(format!("corrupt: triangle {i} has a non-finite corner"));
-        }
-        for p in tri {
-            span = span.grow(p);
-        }
-        triangles.push(tri);
+    let float = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+    let corner = |b: &[u8]| Vec3([float(&b[0..4]), float(&b[4..8]), float(&b[8..12])]);
+    let triangles: Vec<Triangle> = bytes
+        .chunks_exact(36)
+        .map(|t| [corner(&t[0..12]), corner(&t[12..24]), corner(&t[24..36])])
+        .collect();
+    // An exponent of all ones is an infinity or a NaN.
+    let non_finite = |v: &Vec3| v.0.iter().any(|c| c.to_bits() & 0x7f80_0000 == 0x7f80_0000);
+    if let Some(i) = triangles.iter().position(|t| t.iter().any(non_finite)) {
+        return Err(format!("corrupt: triangle {i} has a non-finite corner"));
     }
-    let same = |a: Vec3, b: Vec3| (0..3).all(|k| a[k].to_bits() == b[k].to_bits());
-    if !(same(span.lo, bounds.lo) && same(span.hi, bounds.hi)) {
+    // Nine running minima and maxima (one per coordinate of a triangle), folded at the end:
+    // no dependency from one corner to the next. The corners are finite, so comparisons are
+    // total, and the box is compared by value (-0 and +0 alike).
+    let (mut lo, mut hi) = ([f32::INFINITY; 9], [f32::NEG_INFINITY; 9]);
+    for t in &triangles {
+        for k in 0..9 {
+            let x = t[k / 3].0[k % 3];
+            lo[k] = if x < lo[k] { x } else { lo[k] };
+            hi[k] = if x > hi[k] { x } else { hi[k] };
+        }
+    }
+    let fold = |v: &[f32; 9], a: usize, f: fn(f32, f32) -> f32| f(f(v[a], v[a + 3]), v[a + 6]);
+    let span_lo = Vec3(std::array::from_fn(|a| fold(&lo, a, f32::min)));
+    let span_hi = Vec3(std::array::from_fn(|a| fold(&hi, a, f32::max)));
+    if !(span_lo == bounds.lo && span_hi == bounds.hi) {
         return Err("corrupt: the stored scene bounds are not those of the triangles".into());
     }
     Ok(triangles)

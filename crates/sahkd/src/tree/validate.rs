@@ -120,12 +120,42 @@ pub(super) fn check_splits(tree: &KdTree) -> Result<(), String> {
         frontier = next;
     }
     frontier.par_iter().try_for_each(|&(i, bounds)| {
-        let mut stack = vec![(i, bounds)];
-        while let Some((i, bounds)) = stack.pop() {
-            check_node(tree, i, &bounds, &mut stack)?;
+        // Down the left children without the stack; right children wait on it.
+        let mut stack = Vec::new();
+        let (mut i, mut bounds) = (i, bounds);
+        loop {
+            let node = &tree.nodes[i as usize];
+            if node.is_leaf() {
+                if !tree.leaf_refs(node).is_sorted() {
+                    return Err(format!("leaf {i}'s references are not sorted"));
+                }
+                match stack.pop() {
+                    Some(next) => (i, bounds) = next,
+                    None => return Ok(()),
+                }
+                continue;
+            }
+            let (axis, split) = (node.axis(), node.split());
+            check_split(i, axis, split, &bounds)?;
+            let mut right = bounds;
+            right.lo[axis] = split;
+            stack.push((node.left() + 1, right));
+            bounds.hi[axis] = split;
+            i = node.left();
         }
-        Ok(())
     })
+}
+
+/// A split strictly inside its node's box.
+#[inline(always)]
+fn check_split(i: u32, axis: usize, split: f32, bounds: &Aabb) -> Result<(), String> {
+    if split > bounds.lo[axis] && split < bounds.hi[axis] {
+        return Ok(());
+    }
+    Err(format!(
+        "node {i} splits axis {axis} at {split}, outside its box {:?}..{:?}",
+        bounds.lo[axis], bounds.hi[axis]
+    ))
 }
 
 /// Checks node `i` with its box, and pushes its children (left on top) onto `pending`.
@@ -144,12 +174,7 @@ fn check_node(
         return Ok(());
     }
     let (axis, split) = (node.axis(), node.split());
-    if !(split > bounds.lo[axis] && split < bounds.hi[axis]) {
-        return Err(format!(
-            "node {i} splits axis {axis} at {split}, outside its box {:?}..{:?}",
-            bounds.lo[axis], bounds.hi[axis]
-        ));
-    }
+    check_split(i, axis, split, bounds)?;
     let (l, r) = bounds.split(axis, split);
     pending.push((node.left() + 1, r));
     pending.push((node.left(), l));
