@@ -10,7 +10,7 @@
 
 use super::events::{self, kind, pos_bits, prim, Event, END};
 use super::search::Split;
-use crate::clip::clipped_bounds;
+use crate::clip::clipped_halves;
 use crate::geometry::{Aabb, Triangle};
 
 /// Where a primitive goes: bit 0 left, bit 1 right. A straddler re-made by clipping is
@@ -127,18 +127,17 @@ impl Workspace {
         self.classify(seg[split.axis], split);
         let (mut n_left, mut n_right) = (split.n_left, split.n_right);
         if let Some(triangles) = clip {
-            let (left_box, right_box) = node.split(split.axis, split.pos);
             for list in self.new_left.iter_mut().chain(self.new_right.iter_mut()) {
                 list.clear();
             }
             for &s in &self.straddlers {
                 self.side[s as usize] = NEITHER;
                 let tri = &triangles[s as usize];
-                for (child_box, lists, count) in [
-                    (&left_box, &mut self.new_left, &mut n_left),
-                    (&right_box, &mut self.new_right, &mut n_right),
+                let (left_box, right_box) = clipped_halves(tri, node, split.axis, split.pos);
+                for (b, lists, count) in [
+                    (left_box, &mut self.new_left, &mut n_left),
+                    (right_box, &mut self.new_right, &mut n_right),
                 ] {
-                    let b = clipped_bounds(tri, child_box);
                     if b.is_empty() {
                         *count -= 1;
                     } else {
@@ -261,6 +260,7 @@ fn count_prims(events: &[Event]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::clip::clipped_bounds;
     use crate::geometry::{triangle_bounds, Vec3};
 
     /// Children's event lists equal the lists made and sorted afresh from the boxes the shared
