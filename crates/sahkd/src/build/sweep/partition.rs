@@ -229,12 +229,18 @@ impl Workspace {
         let side = &self.side[..];
         let (mut nl, mut nr) = (0, 0);
         // Branch-free: write to both sides, advance the cursors the event belongs to.
-        for i in 0..len {
+        for i in 0..parent.len() {
             let e = parent[i];
             let s = side[prim(e)];
-            tl[nl] = e;
+            debug_assert!(nl <= i && nr <= i && tl.len() == parent.len());
+            // SAFETY: each cursor advances by at most one per event read, so `nl <= i` and
+            // `nr <= i`, and `i` is within `parent`, as long as `tl`. The bound checks these
+            // writes would otherwise take are a third of the loop's instructions.
+            unsafe {
+                *tl.get_unchecked_mut(nl) = e;
+                *parent.get_unchecked_mut(nr) = e;
+            }
             nl += (s & LEFT) as usize;
-            parent[nr] = e;
             nr += (s >> 1) as usize;
         }
         let (new_l, new_r) = (&mut self.new_left[axis], &mut self.new_right[axis]);
