@@ -14,74 +14,132 @@ const MAX_VERTS: usize = 9;
 /// is +0 (which zero a `min` of -0 and +0 keeps is up to the compiler, and the GPU's clip must
 /// give the same bits).
 pub fn clipped_bounds(tri: &Triangle, b: &Aabb) -> Aabb {
-    // Two polygon buffers used in turn, so that no plane copies a whole polygon.
-    let mut bufs = [[[0f64; 3]; MAX_VERTS]; 2];
-    let mut n = 3;
-    for (k, v) in tri.iter().enumerate() {
-        bufs[0][k] = v.0.map(|c| c as f64);
+    let mut poly = Polygon::of(tri);
+    if poly.clip_to_axes(b, 0..3) {
+        poly.bounds(b)
+    } else {
+        Aabb::EMPTY
     }
-    let mut cur = 0;
-    for axis in 0..3 {
-        for (bound, keep_below) in [(b.lo[axis] as f64, false), (b.hi[axis] as f64, true)] {
-            let inside = |p: &[f64; 3]| {
-                if keep_below {
-                    p[axis] <= bound
-                } else {
-                    p[axis] >= bound
+}
+
+/// `clipped_bounds(tri, left)` and `clipped_bounds(tri, right)` for the two halves of `node`
+/// split at `pos` on `axis`, bit for bit. The planes of the axes before `axis` are the same
+/// for both halves and come first in the order every clip uses, so they are cut once and
+/// the polygon they leave is cut on by each half's remaining planes.
+pub fn clipped_halves(tri: &Triangle, node: &Aabb, axis: usize, pos: f32) -> (Aabb, Aabb) {
+    let (left, right) = node.split(axis, pos);
+    let mut shared = Polygon::of(tri);
+    if !shared.clip_to_axes(node, 0..axis) {
+        return (Aabb::EMPTY, Aabb::EMPTY);
+    }
+    let half = |b: &Aabb| {
+        let mut poly = shared.clone();
+        if poly.clip_to_axes(b, axis..3) {
+            poly.bounds(b)
+        } else {
+            Aabb::EMPTY
+        }
+    };
+    (half(&left), half(&right))
+}
+
+/// A convex polygon being clipped plane by plane, in f64: two vertex buffers used in turn,
+/// so that no plane copies a whole polygon.
+#[derive(Clone)]
+struct Polygon {
+    bufs: [[[f64; 3]; MAX_VERTS]; 2],
+    /// The buffer holding the polygon, and its vertex count.
+    cur: usize,
+    n: usize,
+}
+
+impl Polygon {
+    fn of(tri: &Triangle) -> Polygon {
+        let mut bufs = [[[0f64; 3]; MAX_VERTS]; 2];
+        for (k, v) in tri.iter().enumerate() {
+            bufs[0][k] = v.0.map(|c| c as f64);
+        }
+        Polygon { bufs, cur: 0, n: 3 }
+    }
+
+    /// Cuts by the low then the high plane of `b` on each of `axes`, in order; false once
+    /// nothing is left.
+    fn clip_to_axes(&mut self, b: &Aabb, axes: std::ops::Range<usize>) -> bool {
+        for axis in axes {
+            for (bound, keep_below) in [(b.lo[axis] as f64, false), (b.hi[axis] as f64, true)] {
+                if !self.clip(axis, bound, keep_below) {
+                    return false;
                 }
-            };
-            // A plane that cuts nothing leaves the polygon as it is: skip it.
-            if bufs[cur][..n].iter().all(inside) {
-                continue;
             }
-            let (first, second) = bufs.split_at_mut(1);
-            let (poly, next) = if cur == 0 {
-                (&first[0], &mut second[0])
+        }
+        true
+    }
+
+    /// Keeps the part on the inner side of the plane `axis = bound` (below it with
+    /// `keep_below`); false when nothing is left.
+    #[inline(always)]
+    fn clip(&mut self, axis: usize, bound: f64, keep_below: bool) -> bool {
+        let inside = |p: &[f64; 3]| {
+            if keep_below {
+                p[axis] <= bound
             } else {
-                (&second[0], &mut first[0])
-            };
-            let mut m = 0;
-            for i in 0..n {
-                let (p, q) = (&poly[i], &poly[if i + 1 == n { 0 } else { i + 1 }]);
-                let (pin, qin) = (inside(p), inside(q));
-                // Rounding can bend a clipped polygon very slightly; the caps keep a pathological
-                // one inside the buffers (as the GPU's clip does) instead of panicking.
-                if pin && m < MAX_VERTS {
-                    next[m] = *p;
-                    m += 1;
-                }
-                if pin != qin && m < MAX_VERTS {
-                    let t = (bound - p[axis]) / (q[axis] - p[axis]);
-                    let mut x = [0f64; 3];
-                    for a in 0..3 {
-                        x[a] = p[a] + t * (q[a] - p[a]);
-                    }
-                    x[axis] = bound;
-                    next[m] = x;
-                    m += 1;
-                }
+                p[axis] >= bound
             }
-            n = m;
-            if n == 0 {
-                return Aabb::EMPTY;
+        };
+        let (cur, n) = (self.cur, self.n);
+        // A plane that cuts nothing leaves the polygon as it is: skip it.
+        if self.bufs[cur][..n].iter().all(inside) {
+            return true;
+        }
+        let (first, second) = self.bufs.split_at_mut(1);
+        let (poly, next) = if cur == 0 {
+            (&first[0], &mut second[0])
+        } else {
+            (&second[0], &mut first[0])
+        };
+        let mut m = 0;
+        for i in 0..n {
+            let (p, q) = (&poly[i], &poly[if i + 1 == n { 0 } else { i + 1 }]);
+            let (pin, qin) = (inside(p), inside(q));
+            // Rounding can bend a clipped polygon very slightly; the caps keep a pathological
+            // one inside the buffers (as the GPU's clip does) instead of panicking.
+            if pin && m < MAX_VERTS {
+                next[m] = *p;
+                m += 1;
             }
-            cur = 1 - cur;
+            if pin != qin && m < MAX_VERTS {
+                let t = (bound - p[axis]) / (q[axis] - p[axis]);
+                let mut x = [0f64; 3];
+                for a in 0..3 {
+                    x[a] = p[a] + t * (q[a] - p[a]);
+                }
+                x[axis] = bound;
+                next[m] = x;
+                m += 1;
+            }
         }
+        self.n = m;
+        self.cur = 1 - cur;
+        m > 0
     }
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in &bufs[cur][..n] {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
+
+    /// The polygon's bounds rounded outwards to f32 and limited to `b`, zeros as +0.
+    fn bounds(&self, b: &Aabb) -> Aabb {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in &self.bufs[self.cur][..self.n] {
+            for a in 0..3 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
         }
+        let out = Aabb::new(Vec3(lo.map(round_down)), Vec3(hi.map(round_up))).intersection(*b);
+        // x + 0.0 is x, except that -0 becomes +0.
+        Aabb::new(
+            Vec3(out.lo.0.map(|x| x + 0.0)),
+            Vec3(out.hi.0.map(|x| x + 0.0)),
+        )
     }
-    let out = Aabb::new(Vec3(lo.map(round_down)), Vec3(hi.map(round_up))).intersection(*b);
-    // x + 0.0 is x, except that -0 becomes +0.
-    Aabb::new(
-        Vec3(out.lo.0.map(|x| x + 0.0)),
-        Vec3(out.hi.0.map(|x| x + 0.0)),
-    )
 }
 
 /// The largest f32 at most `x` (the lower bound of a clipped box).
@@ -129,6 +187,33 @@ mod tests {
         let c = clipped_bounds(&t, &b);
         assert_eq!(c.lo, Vec3::new(1.5, 0.0, 0.0));
         assert_eq!(c.hi, Vec3::new(2.0, 0.5, 0.0));
+    }
+
+    #[test]
+    fn halves_are_the_clips_to_each_half_bit_for_bit() {
+        let mut seed = 777u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+        };
+        for round in 0..3000 {
+            let t = tri(
+                [rnd(), rnd(), rnd()],
+                [rnd(), rnd(), rnd()],
+                [rnd(), rnd(), rnd()],
+            );
+            let (p, q) = (Vec3([rnd(), rnd(), rnd()]), Vec3([rnd(), rnd(), rnd()]));
+            let node = Aabb::new(p.min(q), p.max(q));
+            let axis = round % 3;
+            let pos = node.lo[axis] + (node.hi[axis] - node.lo[axis]) * (rnd() * 0.5 + 0.5);
+            let (left, right) = node.split(axis, pos);
+            let bits = |b: Aabb| [b.lo.0, b.hi.0].map(|v| v.map(f32::to_bits));
+            let (l, r) = clipped_halves(&t, &node, axis, pos);
+            assert_eq!(bits(l), bits(clipped_bounds(&t, &left)), "round {round}");
+            assert_eq!(bits(r), bits(clipped_bounds(&t, &right)), "round {round}");
+        }
     }
 
     #[test]

@@ -318,13 +318,14 @@ fn best_split(
             Histograms::of(boxes, axis, &planes, node, bins)
         };
         let (mut below, mut above) = (0, n);
+        let splits = cost.splits_of(node, axis);
         for (j, &pos) in planes.iter().enumerate() {
             // `lo[k]` counts lo ends with k boundaries at or below them: those below boundary
             // j have k <= j. `hi[k]` counts hi ends with k boundaries below them: those above
             // boundary j have k > j. Ends in the plane are in neither.
             below += h.lo[j];
             above -= h.hi[j];
-            let candidate = priced(node, axis, pos, below, above, h.planar[j], cost);
+            let candidate = priced(&splits, axis, pos, below, above, h.planar[j]);
             if candidate.beats(&best) {
                 best = Some(candidate);
             }
@@ -458,7 +459,7 @@ mod tests {
                     .iter()
                     .filter(|b| b.lo[a] == p && b.hi[a] == p)
                     .count() as u32;
-                let s = priced(node, a, p, l, r, pl, cost);
+                let s = priced(&cost.splits_of(node, a), a, p, l, r, pl);
                 if s.beats(&best) {
                     best = Some(s);
                 }

@@ -61,25 +61,27 @@ pub(super) fn merge_into(out: &mut Vec<Event>, mut a: &[Event], b: &[Event]) {
 
 /// Merges the sorted `b` into the sorted tail `list[start..]`, in place: from the back, so
 /// that no event of `list` is overwritten before it is moved. As in [`merge_into`], runs of
-/// `list` are found by binary search and moved whole when `b` is short.
+/// `list` are found by binary search and moved whole when `b` is short; otherwise events
+/// are moved one by one as the backward scan passes them (no call per run: the runs are
+/// short).
 pub(super) fn merge_in_place(list: &mut Vec<Event>, start: usize, b: &[Event]) {
     let mut i = list.len();
     let galloping = b.len() * 16 <= i - start;
     list.resize(list.len() + b.len(), 0);
     let mut w = list.len();
     for &e in b.iter().rev() {
-        let run_start = if galloping {
-            start + list[start..i].partition_point(|&x| x < e)
+        if galloping {
+            let run_start = start + list[start..i].partition_point(|&x| x < e);
+            list.copy_within(run_start..i, w - (i - run_start));
+            w -= i - run_start;
+            i = run_start;
         } else {
-            let mut r = i;
-            while r > start && list[r - 1] > e {
-                r -= 1;
+            while i > start && list[i - 1] > e {
+                i -= 1;
+                w -= 1;
+                list[w] = list[i];
             }
-            r
-        };
-        list.copy_within(run_start..i, w - (i - run_start));
-        w -= i - run_start;
-        i = run_start;
+        }
         w -= 1;
         list[w] = e;
     }

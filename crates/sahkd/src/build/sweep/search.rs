@@ -9,7 +9,7 @@ use super::events::{kind, plane_bits, pos_bits, Event, END, PLANAR};
 use crate::build::choice::Ranked;
 use crate::build::event::unordered;
 use crate::build::Axes;
-use crate::cost::CostModel;
+use crate::cost::{CostModel, SplitPricer};
 use crate::geometry::Aabb;
 
 /// The cheapest plane of a node.
@@ -92,6 +92,9 @@ fn sweep_axis<const AXIS: usize>(
     best: &mut Option<Split>,
 ) {
     let axis = AXIS;
+    // What the price depends on only through the node, computed once per sweep, not per
+    // candidate (the same bits: `splits_of` is what `split_cost` calls).
+    let splits = cost.splits_of(node, axis);
     // Candidates must lie strictly inside the node; compare keys, not floats.
     let (lo_key, hi_key) = (plane_bits(node.lo[axis]), plane_bits(node.hi[axis]));
     let (mut below, mut above) = (0u32, n);
@@ -111,7 +114,7 @@ fn sweep_axis<const AXIS: usize>(
         let starts = (i - group_start) as u32 - ends - planar;
         above -= ends + planar;
         if key > lo_key && key < hi_key {
-            let candidate = priced(node, axis, unordered(key), below, above, planar, cost);
+            let candidate = priced(&splits, axis, unordered(key), below, above, planar);
             if candidate.beats(best) {
                 *best = Some(candidate);
             }
@@ -121,30 +124,30 @@ fn sweep_axis<const AXIS: usize>(
 }
 
 /// The plane at `pos` with `below` primitives starting left of it, `above` ending right of
-/// it and `planar` lying in it, priced with the planar ones on the cheaper side (the left on
-/// a tie): the one pricing of the exact and the binned searches.
+/// it and `planar` lying in it, priced by the node's `splits` on `axis` with the planar ones
+/// on the cheaper side (the left on a tie): the one pricing of the exact and the binned
+/// searches.
 #[inline(always)]
 pub(super) fn priced(
-    node: &Aabb,
+    splits: &SplitPricer,
     axis: usize,
     pos: f32,
     below: u32,
     above: u32,
     planar: u32,
-    cost: &CostModel,
 ) -> Split {
     if planar == 0 {
         Split {
             axis,
             pos,
-            cost: cost.split_cost(node, axis, pos, below, above),
+            cost: splits.cost(pos, below, above),
             planar_left: true,
             n_left: below,
             n_right: above,
         }
     } else {
-        let left = cost.split_cost(node, axis, pos, below + planar, above);
-        let right = cost.split_cost(node, axis, pos, below, above + planar);
+        let left = splits.cost(pos, below + planar, above);
+        let right = splits.cost(pos, below, above + planar);
         let planar_left = left <= right;
         Split {
             axis,
