@@ -197,8 +197,8 @@ impl KdTree {
                     }
                     continue;
                 }
-                let records = layout.leaf(node);
-                if !records.is_empty() {
+                let words = layout.leaf_words(node);
+                if !words.is_empty() {
                     let sheared = sheared.get_or_insert_with(|| {
                         std::array::from_fn(|i| ShearedRay::with_reach(&rays[i], layout.reach))
                     });
@@ -211,7 +211,7 @@ impl KdTree {
                         let mut visit_lane = |hit: Hit, limit: &mut f32| visit(i, hit, limit);
                         if visit_leaf(
                             &sheared[i],
-                            records,
+                            words,
                             t_min[i],
                             &mut limit[i],
                             &mut (),
