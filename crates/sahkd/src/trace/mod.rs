@@ -18,7 +18,6 @@ pub mod precise;
 mod triangle;
 
 pub(crate) use layout::TraceLayout;
-use layout::TriangleRecord;
 
 pub use precise::{Hit64, Ray64};
 pub use triangle::{ShearedRay, TriangleHit};
@@ -31,32 +30,34 @@ use std::mem::MaybeUninit;
 
 /// Tests a leaf's triangles against one ray and calls `visit(hit, limit)` for each hit with
 /// `t` in `[t_min, *limit]`, in the leaf's order, exactly as testing them one at a time
-/// against the limit of the moment would: four at a time against the limit at the start of
-/// the four (`ShearedRay::intersect4`), each hit checked again against the limit the hits
-/// before it in the leaf may have lowered. A leaf's last 2 or 3 triangles are one padded
-/// group, a single one the one-triangle test. Returns true when `visit` ends the walk.
+/// against the limit of the moment would: a block of the layout at a time against the limit
+/// at the start of the block (`ShearedRay::intersect_block`), each hit checked again against
+/// the limit the hits before it in the leaf may have lowered. A last block of one triangle
+/// takes the one-triangle test. `words` are the leaf's words in the layout. Returns true
+/// when `visit` ends the walk.
 #[inline(always)]
 fn visit_leaf(
     sheared: &ShearedRay,
-    records: &[TriangleRecord],
+    words: &[u32],
     t_min: f32,
     limit: &mut f32,
     counters: &mut impl TraceCounters,
     visit: &mut impl FnMut(Hit, &mut f32) -> bool,
 ) -> bool {
-    let mut visit_group = |group: [&TriangleRecord; 4], count: usize, limit: &mut f32| {
-        for _ in 0..count {
+    let mut visit_block = |block: &[u32], limit: &mut f32| {
+        let k = block.len() / layout::WORDS;
+        for _ in 0..k {
             counters.triangle();
         }
-        let hits = sheared.intersect4(group.map(|r| &r.corners), t_min, *limit);
-        let mut bits = hits.mask & ((1 << count) - 1);
+        let hits = sheared.intersect_block(block, t_min, *limit);
+        let mut bits = hits.mask;
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
             bits &= bits - 1;
             if hits.t[i] <= *limit {
                 let hit = Hit {
                     t: hits.t[i],
-                    prim: group[i].prim,
+                    prim: block[9 * k + i],
                     u: hits.u[i],
                     v: hits.v[i],
                 };
@@ -67,34 +68,32 @@ fn visit_leaf(
         }
         false
     };
-    let mut groups = records.chunks_exact(4);
-    for group in &mut groups {
-        if visit_group(std::array::from_fn(|i| &group[i]), 4, limit) {
+    let mut blocks = words.chunks_exact(layout::BLOCK * layout::WORDS);
+    for block in &mut blocks {
+        if visit_block(block, limit) {
             return true;
         }
     }
-    match groups.remainder() {
-        [] => false,
-        [record] => {
-            counters.triangle();
-            match sheared.intersect(&record.corners, t_min, *limit) {
-                Some(h) => visit(
-                    Hit {
-                        t: h.t,
-                        prim: record.prim,
-                        u: h.u,
-                        v: h.v,
-                    },
-                    limit,
-                ),
-                None => false,
-            }
+    let rest = blocks.remainder();
+    if rest.is_empty() {
+        false
+    } else if rest.len() > layout::WORDS {
+        visit_block(rest, limit)
+    } else {
+        counters.triangle();
+        let record = layout::block_record(rest, 0);
+        match sheared.intersect(&record.corners, t_min, *limit) {
+            Some(h) => visit(
+                Hit {
+                    t: h.t,
+                    prim: record.prim,
+                    u: h.u,
+                    v: h.v,
+                },
+                limit,
+            ),
+            None => false,
         }
-        rest => visit_group(
-            std::array::from_fn(|i| &rest[i.min(rest.len() - 1)]),
-            rest.len(),
-            limit,
-        ),
     }
 }
 
@@ -448,14 +447,12 @@ impl KdTree {
                     }
                     continue;
                 }
-                let records = layout.leaf(node);
-                if !records.is_empty() {
+                let words = layout.leaf_words(node);
+                if !words.is_empty() {
                     counters.leaf();
                     let sheared =
                         sheared.get_or_insert_with(|| ShearedRay::with_reach(ray, layout.reach));
-                    if visit_leaf(
-                        sheared, records, ray.t_min, &mut limit, counters, &mut visit,
-                    ) {
+                    if visit_leaf(sheared, words, ray.t_min, &mut limit, counters, &mut visit) {
                         return;
                     }
                 }
