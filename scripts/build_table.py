@@ -122,7 +122,7 @@ def main():
                 old = next(r for b, t, r in rows if b == f"sweep ({axes}), baseline binary")
                 # The SAH cost is summed in the report's own order: equal to rounding.
                 same = (new["nodes"], new["refs"]) == (old["nodes"], old["refs"]) and \
-                    abs(new["sah"] - old["sah"]) <= 1e-9 * new["sah"]
+                    abs(new["sah"] - old["sah"]) <= 1e-8 * new["sah"]
                 notes.append(f"{name} sweep ({axes}): baseline / this = {old['ms'][0] / new['ms'][0]:.2f}x, "
                              f"{'same' if same else 'DIFFERENT'} tree")
         notes.append(f"{name}: load average {before} before, {load()} after")

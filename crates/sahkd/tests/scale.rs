@@ -149,6 +149,9 @@ fn tree_of(tris: &[Triangle]) -> KdTree {
         .tree
 }
 
+/// A walk that reports every hit it finds.
+type Walk<'a> = &'a dyn Fn(&mut dyn FnMut(Hit));
+
 /// Checks single and batch queries of `tris` against float64; returns the hits seen.
 fn check_scene(what: &str, tris: &[Triangle], rays: &[Ray], tol: f64) -> usize {
     let tree = tree_of(tris);
@@ -160,7 +163,7 @@ fn check_scene(what: &str, tris: &[Triangle], rays: &[Ray], tol: f64) -> usize {
         assert_eq!(got, brute::intersect(tris, ray), "{what}: ray {i}: brute");
         assert_eq!(tree.occluded(ray), got.is_some(), "{what}: ray {i}");
         // Every hit (each triangle once, as the all-hits and parity queries use them).
-        let every = |walk: &dyn Fn(&mut dyn FnMut(Hit))| {
+        let every = |walk: Walk| {
             let mut hits = Vec::new();
             walk(&mut |h| hits.push((h.prim, h.t.to_bits())));
             hits.sort_unstable();

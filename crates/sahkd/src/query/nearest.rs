@@ -16,6 +16,7 @@ use super::triangle::{closest_on_triangle, cross, d3, dot, sub, D3};
 use super::ClosestPoint;
 use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::{Aabb, Triangle, Vec3};
+use crate::trace::layout::{block_record, BLOCK, WORDS};
 use crate::tree::KdTree;
 use std::mem::MaybeUninit;
 
@@ -115,14 +116,18 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
         if current.distance2 <= limit {
             let node = &layout.nodes[current.node as usize];
             if node.is_leaf() {
-                for record in layout.leaf(node) {
+                let blocks = layout.leaf_words(node).chunks(BLOCK * WORDS);
+                for (block, i) in blocks.flat_map(|b| (0..b.len() / WORDS).map(move |i| (b, i))) {
                     // A triangle in several leaves needs no second look: it was either
-                    // tested or found beyond a bound, and the bound only shrinks.
-                    let slot = &mut tested[record.prim as usize % TESTED];
-                    if *slot == record.prim {
+                    // tested or found beyond a bound, and the bound only shrinks. Its index
+                    // is read first, its corners only when they are needed.
+                    let prim = block[9 * (block.len() / WORDS) + i];
+                    let slot = &mut tested[prim as usize % TESTED];
+                    if *slot == prim {
                         continue;
                     }
-                    *slot = record.prim;
+                    *slot = prim;
+                    let record = block_record(block, i);
                     // The triangle's box and its plane bound its distance from below: cheap
                     // rejections of most of a leaf's triangles once a good answer is known.
                     let c = &record.corners;

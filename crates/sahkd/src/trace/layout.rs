@@ -105,7 +105,8 @@ impl TraceLayout {
         &self.words[first..first + node.count() as usize * WORDS]
     }
 
-    /// The triangles of a leaf of this layout, in order, for code off the rays' hot path.
+    /// The triangles of a leaf of this layout, in order (the layout's test reads them).
+    #[cfg(test)]
     pub fn leaf(&self, node: &Node) -> impl Iterator<Item = TriangleRecord> + '_ {
         self.leaf_words(node)
             .chunks(BLOCK * WORDS)
@@ -170,10 +171,8 @@ mod tests {
                     .iter()
                     .map(|&p| (p, tree.triangles()[p as usize]))
                     .collect();
-                let got: Vec<(u32, Triangle)> = layout
-                    .leaf(new)
-                    .map(|r| (r.prim, r.corners))
-                    .collect();
+                let got: Vec<(u32, Triangle)> =
+                    layout.leaf(new).map(|r| (r.prim, r.corners)).collect();
                 assert_eq!(got, want);
             } else {
                 assert_eq!((old.axis(), old.split()), (new.axis(), new.split()));

@@ -12,7 +12,7 @@
 //! walk neighbouring rays four at a time (`packet`), with the same answers.
 
 pub mod brute;
-mod layout;
+pub(crate) mod layout;
 mod packet;
 pub mod precise;
 mod triangle;
