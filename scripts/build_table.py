@@ -26,16 +26,19 @@ import sys
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 DEFAULT_MESHES = ["bunny", "dragon_res2", "dragon"]
-# (algorithm, axes, threads); the first is the default build.
+# (algorithm, axes, threads, bins); the first is the default build. Bins None is the
+# builder's own default (256 for the hybrid, exact for the others); 0 is exact SAH.
 CONFIGS = [
-    ("hybrid", "longest", 2),
-    ("hybrid", "longest", 1),
-    ("sweep", "longest", 1),
-    ("level", "longest", 2),
-    ("hybrid", "all", 2),
-    ("hybrid", "all", 1),
-    ("sweep", "all", 1),
-    ("median", "longest", 2),
+    ("hybrid", "longest", 2, None),
+    ("hybrid", "longest", 2, 0),
+    ("hybrid", "longest", 1, None),
+    ("hybrid", "longest", 1, 0),
+    ("sweep", "longest", 1, None),
+    ("level", "longest", 2, None),
+    ("hybrid", "all", 2, None),
+    ("hybrid", "all", 2, 0),
+    ("sweep", "all", 1, None),
+    ("median", "longest", 2, None),
 ]
 EMBREE = re.compile(r"build median ([0-9.]+) ms \(min ([0-9.]+), max ([0-9.]+)")
 
@@ -56,11 +59,11 @@ def pinned(threads):
     return ["taskset", "-c", "0"] if threads == 1 else []
 
 
-def sahkd(binary, mesh, algorithm, axes, threads, repeat):
+def sahkd(binary, mesh, algorithm, axes, threads, repeat, bins=None):
     cmd = pinned(threads) + [
         binary, "build", mesh, "--algorithm", algorithm, "--axes", axes,
         "--threads", str(threads), "--json", "--quiet",
-    ]
+    ] + ([] if bins is None else ["--bins", str(bins)])
     run(cmd)
     reports = [json.loads(run(cmd)) for _ in range(repeat)]
     times = [r["build_ms"] for r in reports]
@@ -68,7 +71,7 @@ def sahkd(binary, mesh, algorithm, axes, threads, repeat):
     return dict(
         ms=(statistics.median(times), min(times), max(times)),
         sah=last["sah_cost"], nodes=last["nodes"], refs=last["references"],
-        bytes=last.get("peak_working_bytes_per_triangle"),
+        bytes=last.get("peak_working_bytes_per_triangle"), bins=last.get("bins"),
         triangles=last["triangles"],
     )
 
@@ -103,7 +106,11 @@ def main():
     for name in args.meshes:
         mesh = os.path.join(scenes, f"{name}.ply")
         before = load()
-        rows = [(f"{a} ({x})", t, sahkd(args.sahkd, mesh, a, x, t, args.repeat)) for a, x, t in CONFIGS]
+        rows = []
+        for a, x, t, bins in CONFIGS:
+            r = sahkd(args.sahkd, mesh, a, x, t, args.repeat, bins)
+            binned = f", {r['bins']} bins" if r["bins"] else ""
+            rows.append((f"{a} ({x}{binned})", t, r))
         if args.baseline:
             for axes in ["longest", "all"]:
                 rows.append((f"sweep ({axes}), baseline binary", 1,
@@ -118,7 +125,7 @@ def main():
         print(f"| | Embree 4 BVH | 2 / 1 | {spread(bvh[2])} / {spread(bvh[1])} | 1 | (BVH) | | | |", flush=True)
         if args.baseline:
             for axes in ["longest", "all"]:
-                new = next(r for b, t, r in rows if b == f"sweep ({axes})")
+                new = next(r for b, t, r in rows if b.startswith(f"sweep ({axes}") and "baseline" not in b)
                 old = next(r for b, t, r in rows if b == f"sweep ({axes}), baseline binary")
                 # The SAH cost is summed in the report's own order: equal to rounding.
                 same = (new["nodes"], new["refs"]) == (old["nodes"], old["refs"]) and \

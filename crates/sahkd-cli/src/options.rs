@@ -53,10 +53,9 @@ pub struct BuilderArgs {
 
     /// Sweep and hybrid builders: price nodes of more than 64 x N triangle references at the
     /// N - 1 boundaries of N equal bins (min-max binning), the others exactly; 0 prices every
-    /// node exactly
-    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = parse_bins,
-          default_value_t = default_options().bins)]
-    pub bins: u32,
+    /// node exactly [default: 256 for hybrid, 0 for sweep]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = parse_bins)]
+    pub bins: Option<u32>,
 
     /// Worker threads for building and tracing, at most 4 per core (64 on any machine)
     /// [default: all cores]
@@ -373,7 +372,7 @@ fn parse_bins(s: &str) -> Result<u32, String> {
         .map_err(|_| format!("expected 0 or a number of bins, found `{s}`"))?;
     let options = BuildOptions {
         algorithm: Algorithm::Sweep,
-        bins,
+        bins: Some(bins),
         ..BuildOptions::default()
     };
     match options.validate() {
@@ -503,7 +502,7 @@ mod tests {
                 max_duplication: 2.0,
             },
             median_large_node: 16,
-            bins: 64,
+            bins: Some(64),
         };
         assert_eq!(o, expected);
         assert_eq!(

@@ -174,13 +174,14 @@ fn build_options_reach_the_library() {
         ),
         (&["--algorithm", "sweep", "--bins", "2"], |o| {
             o.algorithm = sahkd::Algorithm::Sweep;
-            o.bins = 2;
+            o.bins = Some(2);
         }),
         (&["--bins", "4", "--axes", "all", "--clip", "off"], |o| {
-            o.bins = 4;
+            o.bins = Some(4);
             o.axes = sahkd::Axes::All;
             o.clip = false;
         }),
+        (&["--bins", "0"], |o| o.bins = Some(0)),
         (&["--max-depth", "5", "--max-duplication", "1.5"], |o| {
             o.cost.max_depth = Some(5);
             o.cost.max_duplication = 1.5;
@@ -207,7 +208,7 @@ fn build_options_reach_the_library() {
             assert_eq!(report[key], name.as_str(), "{flags:?}");
         }
         assert_eq!(report["clip"], options.clip, "{flags:?}");
-        assert_eq!(report["bins"], options.bins, "{flags:?}");
+        assert_eq!(report["bins"], options.resolved_bins(), "{flags:?}");
         assert_eq!(report["nodes"], expected.nodes, "{flags:?}");
         assert_eq!(report["leaves"], expected.leaves, "{flags:?}");
         assert_eq!(report["empty_leaves"], expected.empty_leaves, "{flags:?}");

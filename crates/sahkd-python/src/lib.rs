@@ -259,7 +259,7 @@ impl PyKdTree {
     #[new]
     #[pyo3(
         signature = (vertices, faces, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost),
-        text_signature = "(vertices, faces, algorithm='hybrid', axes=None, counting=None, clip=True, threads=None, bins=0, **cost)"
+        text_signature = "(vertices, faces, algorithm='hybrid', axes=None, counting=None, clip=True, threads=None, bins=None, **cost)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -343,7 +343,7 @@ impl PyKdTree {
         d.set_item("axes", o.axes.name())?;
         d.set_item("counting", o.counting.name())?;
         d.set_item("clip", o.clip)?;
-        d.set_item("bins", o.bins)?;
+        d.set_item("bins", o.resolved_bins())?;
         d.set_item("threads", self.meta.build_threads)?;
         Ok(d)
     }

@@ -118,12 +118,12 @@ pub fn build_options(
         o.cost = cost_model(kw)?;
     }
     if let Some(b) = bins {
-        o.bins = u32::try_from(b).map_err(|_| {
+        o.bins = Some(u32::try_from(b).map_err(|_| {
             PyValueError::new_err(format!(
                 "bins must be 0 (exact SAH) or from 2 to {}, got {b}",
                 sahkd::MAX_BINS
             ))
-        })?;
+        })?);
     }
     // The library's own rules (bins' range, and which builders take bins), named as it names them.
     o.validate().map_err(|e| match e {

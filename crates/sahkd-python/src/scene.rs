@@ -169,7 +169,7 @@ impl PyScene {
     /// Builds the tree over every placed triangle; options as for KdTree.
     #[pyo3(
         signature = (algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost),
-        text_signature = "(self, algorithm='hybrid', axes=None, counting=None, clip=True, threads=None, bins=0, **cost)"
+        text_signature = "(self, algorithm='hybrid', axes=None, counting=None, clip=True, threads=None, bins=None, **cost)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn build(

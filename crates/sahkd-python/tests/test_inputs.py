@@ -96,6 +96,11 @@ def test_good_options_are_accepted():
     assert tree.stats["clip"] is False and tree.stats["threads"] == 2
     binned = sahkd.KdTree(V, F, algorithm="hybrid", bins=np.int64(64))
     assert binned.stats["bins"] == 64 and binned.stats["algorithm"] == "hybrid"
+    # Unset, bins is the hybrid's default binning and exact SAH for the other builders.
+    assert sahkd.KdTree(V, F).stats["bins"] == 256
+    assert sahkd.KdTree(V, F, algorithm="sweep").stats["bins"] == 0
+    assert sahkd.KdTree(V, F, algorithm="level").stats["bins"] == 0
+    assert sahkd.KdTree(V, F, bins=None).stats["bins"] == 256
 
 
 @pytest.mark.parametrize(

@@ -32,7 +32,7 @@ pub mod tree;
 
 pub use build::{
     build, build_triangles, Algorithm, Axes, Build, BuildOptions, BuildReport, Counting,
-    BINNED_REFS_PER_BIN, MAX_BINS,
+    BINNED_REFS_PER_BIN, HYBRID_BINS, MAX_BINS,
 };
 pub use cost::CostModel;
 pub use geometry::{Aabb, Triangle, Vec3};

@@ -129,10 +129,12 @@ fn the_default_and_level_builders_are_deterministic_on_a_real_scene() {
 fn hybrid_builds_the_sweeps_tree(tris: &[sahkd::Triangle], case: &str) {
     for clip in [true, false] {
         for axes in [Axes::All, Axes::Longest] {
+            // Exact: the hybrid's level passes and hand-over are what is compared.
             let sweep_options = BuildOptions {
                 algorithm: Algorithm::Sweep,
                 axes,
                 clip,
+                bins: Some(0),
                 ..BuildOptions::default()
             };
             let reference = build_triangles(tris.to_vec(), &sweep_options).unwrap().tree;
@@ -219,6 +221,7 @@ fn a_binding_budget_keeps_every_builder_within_it_and_hybrid_the_sweep() {
             clip: true,
             cost,
             threads: Some(threads),
+            bins: Some(0),
             ..BuildOptions::default()
         };
         build_triangles(tris.clone(), &options).unwrap().tree

@@ -1,5 +1,5 @@
-//! Binned SAH for big nodes (`BuildOptions::bins`): off by default and then the exact trees
-//! of before; on, valid trees that answer rays like brute force, the same on any number of
+//! Binned SAH for big nodes (`BuildOptions::bins`): the hybrid's default, the other builders
+//! exact by default; off (`Some(0)`), the exact trees of before; on, valid trees that answer rays like brute force, the same on any number of
 //! threads, and options out of range refused.
 
 mod common;
@@ -19,7 +19,7 @@ fn fingerprint(tree: &KdTree) -> u64 {
     h
 }
 
-/// The exact trees' fingerprints, taken before binning existed (commit e4cfe04): bins = 0
+/// The exact trees' fingerprints, taken before binning existed (commit e4cfe04): bins 0
 /// must leave every tree as it was, bit for bit.
 #[test]
 fn bins_zero_gives_the_exact_trees_of_before() {
@@ -39,9 +39,9 @@ fn bins_zero_gives_the_exact_trees_of_before() {
             axes,
             clip,
             threads: Some(2),
+            bins: Some(0),
             ..BuildOptions::default()
         };
-        assert_eq!(options.bins, 0, "binning is off by default");
         let tree = build_triangles(tris.clone(), &options).unwrap().tree;
         let got = fingerprint(&tree);
         assert_eq!(got, want, "{algorithm:?} {axes:?} clip {clip}: {got:#x}");
@@ -52,7 +52,7 @@ fn binned(algorithm: Algorithm, bins: u32, threads: usize) -> BuildOptions {
     BuildOptions {
         algorithm,
         axes: Axes::All,
-        bins,
+        bins: Some(bins),
         threads: Some(threads),
         ..BuildOptions::default()
     }
@@ -153,16 +153,73 @@ fn bins_out_of_range_or_with_other_builders_are_refused() {
     }
 }
 
-/// Saved options leave `bins` out when it is 0 (files as before) and read it back otherwise;
-/// options saved before it existed read as 0.
+/// Unset, `bins` is the hybrid's [`sahkd::HYBRID_BINS`] and exact SAH for every other
+/// builder (the sweep stays the exact reference); set, it is what was asked. The default
+/// hybrid's tree is the binned sweep's.
+#[test]
+fn bins_default_to_binning_for_the_hybrid_only() {
+    for algorithm in Algorithm::ALL.iter().copied() {
+        let options = BuildOptions {
+            algorithm,
+            ..BuildOptions::default()
+        };
+        assert_eq!(options.bins, None);
+        assert!(options.validate().is_ok(), "{algorithm:?}");
+        let want = if algorithm == Algorithm::Hybrid {
+            sahkd::HYBRID_BINS
+        } else {
+            0
+        };
+        assert_eq!(options.resolved_bins(), want, "{algorithm:?}");
+        for bins in [0, 64] {
+            let set = BuildOptions {
+                bins: Some(bins),
+                ..options
+            };
+            assert_eq!(set.resolved_bins(), bins, "{algorithm:?}");
+        }
+    }
+    assert_eq!(
+        BuildOptions::quality().resolved_bins(),
+        0,
+        "quality is exact"
+    );
+    // Enough triangles for the root to be binned (over 64 x 256 references).
+    let tris = sahkd::scenes::generate("spd:toys:20000")
+        .unwrap()
+        .corner_triangles();
+    let default = build_triangles(tris.clone(), &BuildOptions::default())
+        .unwrap()
+        .tree;
+    let sweep = build_triangles(
+        tris.clone(),
+        &BuildOptions {
+            bins: Some(sahkd::HYBRID_BINS),
+            ..BuildOptions::sweep()
+        },
+    )
+    .unwrap()
+    .tree;
+    assert!(
+        default.same_tree(&sweep),
+        "default hybrid = sweep with HYBRID_BINS"
+    );
+    let exact = build_triangles(tris, &BuildOptions::sweep()).unwrap().tree;
+    assert!(!default.same_tree(&exact), "the default is binned");
+}
+
+/// Options leave `bins` out when unset and read it back when set; options saved before it
+/// existed read as unset.
 #[test]
 fn bins_round_trips_through_saved_options() {
-    let exact = serde_json::to_string(&BuildOptions::default()).unwrap();
-    assert!(!exact.contains("bins"), "{exact}");
-    let options = binned(Algorithm::Sweep, 64, 1);
-    let text = serde_json::to_string(&options).unwrap();
-    let back: BuildOptions = serde_json::from_str(&text).unwrap();
-    assert_eq!(back.bins, 64);
-    let old: BuildOptions = serde_json::from_str(&exact).unwrap();
-    assert_eq!(old.bins, 0);
+    let unset = serde_json::to_string(&BuildOptions::default()).unwrap();
+    assert!(!unset.contains("bins"), "{unset}");
+    for bins in [0, 64] {
+        let options = binned(Algorithm::Sweep, bins, 1);
+        let text = serde_json::to_string(&options).unwrap();
+        let back: BuildOptions = serde_json::from_str(&text).unwrap();
+        assert_eq!(back.bins, Some(bins));
+    }
+    let old: BuildOptions = serde_json::from_str(&unset).unwrap();
+    assert_eq!(old.bins, None);
 }

@@ -286,9 +286,13 @@ impl ReferenceBuilder<'_> {
         let n = items.len() as u32;
         let mut split = None;
         if n > cost.leaf_size && depth < self.max_depth {
-            if let Some(s) =
-                reference_best_split(&items, &bounds, self.opts.axes, self.opts.bins, &cost)
-            {
+            if let Some(s) = reference_best_split(
+                &items,
+                &bounds,
+                self.opts.axes,
+                self.opts.resolved_bins(),
+                &cost,
+            ) {
                 if s.cost < cost.leaf_cost(n) {
                     if self.references + (s.n_left + s.n_right - n) as usize <= self.budget {
                         split = Some(s);
@@ -520,7 +524,7 @@ fn binned_trees_equal_the_reference_builder() {
         // Thresholds of 128, 192 and 256 references: several binned levels, then the sweep.
         for bins in [2, 3, 4] {
             for mut opts in all_option_sets() {
-                opts.bins = bins;
+                opts.bins = Some(bins);
                 let what = format!("round {round}, {n} triangles, {bins} bins");
                 assert_same_as_reference(&tris, &opts, &what);
                 // The hybrid builds the binned nodes' children at once: the same tree.
@@ -554,7 +558,7 @@ fn binned_builds_keep_the_reference_budget_as_the_reference_does() {
     let mut refused = 0;
     for mut opts in all_option_sets() {
         opts.cost.max_duplication = 1.0;
-        opts.bins = 2;
+        opts.bins = Some(2);
         refused += assert_same_as_reference(&tris, &opts, "binned slivers");
         // In parallel the budget binds, so the hybrid builds depth first: the same tree.
         opts.algorithm = Algorithm::Hybrid;

@@ -209,7 +209,7 @@ impl Built {
             axes: axes_name(options.axes),
             counting: counting_name(options.counting),
             clip: options.clip,
-            bins: options.bins,
+            bins: options.resolved_bins(),
             threads: builder.threads(),
             load_ms: self.loaded.load_ms,
             build_ms: report.build_ms,
@@ -257,7 +257,7 @@ impl Built {
                     },
                     counting_name(options.counting),
                     switch_name(options.clip),
-                    match options.bins {
+                    match options.resolved_bins() {
                         0 => String::new(),
                         n => format!(
                             ", {n} bins above {} references",

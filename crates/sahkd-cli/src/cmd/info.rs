@@ -161,7 +161,7 @@ fn tree_info(loaded: &Loaded, tree: &KdTree, meta: &TreeMeta, json: bool) -> Res
         axes: axes_name(o.axes),
         counting: counting_name(o.counting),
         clip: o.clip,
-        bins: o.bins,
+        bins: o.resolved_bins(),
         build_ms: meta.build_ms,
         presort_ms: meta.presort_ms,
         build_threads: meta.build_threads,

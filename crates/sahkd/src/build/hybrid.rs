@@ -15,8 +15,8 @@
 //! budget that binds: needles across a scene, say) the sweep builds it. Either way the tree
 //! is the same on any number of threads.
 //!
-//! With `BuildOptions::bins` the level passes are not used: they price every candidate
-//! exactly, and where they stop depends on the number of threads, so the tree would too.
+//! With binning (the default, [`crate::HYBRID_BINS`]; `bins: Some(0)` turns it off) the level
+//! passes are not used: they price every candidate exactly, and where they stop depends on the number of threads, so the tree would too.
 //! The binned sweep builds the tree instead, the two children of each binned node at once
 //! (`sweep::build_binned_parallel`): the tree of `sweep` with the same bins, on every core.
 
@@ -48,7 +48,7 @@ pub(crate) fn hand_off(threads: usize, nodes: usize, refs: usize, biggest: usize
 }
 
 pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
-    if options.bins != 0 {
+    if options.resolved_bins() != 0 {
         return sweep::build_binned_parallel(prims, options);
     }
     let threads = rayon::current_num_threads();

@@ -14,7 +14,9 @@ mod report;
 mod stitch;
 mod sweep;
 
-pub use options::{Algorithm, Axes, BuildOptions, Counting, BINNED_REFS_PER_BIN, MAX_BINS};
+pub use options::{
+    Algorithm, Axes, BuildOptions, Counting, BINNED_REFS_PER_BIN, HYBRID_BINS, MAX_BINS,
+};
 pub use report::{BuildReport, LevelReport, PhaseTimes};
 
 use crate::geometry::{scene_scale, triangle_bounds, Aabb, Triangle};

@@ -242,8 +242,13 @@ fn node_bytes(n: &Node) -> [u8; 8] {
 }
 
 fn meta_json(meta: &TreeMeta) -> String {
+    // The bins the tree was built with, not "the builder's default", which may change.
+    let options = BuildOptions {
+        bins: Some(meta.options.resolved_bins()),
+        ..meta.options
+    };
     json!({
-        "options": meta.options,
+        "options": options,
         "build_ms": meta.build_ms,
         "presort_ms": meta.presort_ms,
         "build_threads": meta.build_threads,
@@ -442,8 +447,10 @@ fn parse(mut r: Reader<'_>, file_len: usize) -> Result<(KdTree, TreeMeta), Strin
 
 fn parse_meta(bytes: &[u8]) -> Result<TreeMeta, String> {
     let v: Value = serde_json::from_slice(bytes).map_err(|e| format!("corrupt metadata: {e}"))?;
-    let options = serde_json::from_value(v["options"].clone())
+    let mut options: BuildOptions = serde_json::from_value(v["options"].clone())
         .map_err(|e| format!("corrupt metadata (build options): {e}"))?;
+    // Files written before binning was the hybrid's default leave out exact SAH's bins 0.
+    options.bins.get_or_insert(0);
     let ms = |k: &str| v[k].as_f64().unwrap_or(0.0);
     Ok(TreeMeta {
         options,

@@ -92,7 +92,7 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions, parallel: bool) 
     let ctx = Ctx {
         triangles: prims.triangles,
         options,
-        threshold: BINNED_REFS_PER_BIN * options.bins as usize,
+        threshold: BINNED_REFS_PER_BIN * options.resolved_bins() as usize,
         max_depth: options.cost.max_depth_for(n),
         budget: options.cost.reference_budget(n),
         parallel: parallel && rayon::current_num_threads() > 1,
@@ -149,7 +149,7 @@ fn grow(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
             &node.boxes,
             &node.bounds,
             ctx.options.axes,
-            ctx.options.bins,
+            ctx.options.resolved_bins(),
             cost,
             ctx.parallel,
         )

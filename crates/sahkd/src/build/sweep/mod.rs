@@ -37,7 +37,7 @@ struct Pending {
 }
 
 pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
-    if options.bins != 0 {
+    if options.resolved_bins() != 0 {
         return binned::build(prims, options, false);
     }
     let total_prims = prims.triangles.len();
@@ -62,7 +62,7 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
     built
 }
 
-/// The tree of [`build`] with `options.bins` set (not 0), the children of every binned node
+/// The tree of [`build`] with binning (`options.resolved_bins()` not 0), the children of every binned node
 /// built at once: the same tree on any number of threads.
 pub(crate) fn build_binned_parallel(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
     binned::build(prims, options, true)
