@@ -198,6 +198,37 @@ impl Builder {
             }
         }
     }
+
+    /// [`build_on_device`](Self::build_on_device) for a command that needs the mesh no more
+    /// (it leaves `mesh` empty).
+    pub fn build_on_device_taking(&self, mesh: &mut Mesh) -> Result<(Build, Option<GpuReport>)> {
+        if self.device == DeviceArg::Gpu {
+            let built = self.build_on_device(mesh);
+            *mesh = Mesh::default();
+            return built;
+        }
+        Ok((self.build_taking(mesh)?, None))
+    }
+
+    /// [`build`](Self::build) for a command that needs the mesh no more (it leaves `mesh`
+    /// empty): the mesh is freed as soon as its triangles are copied out, before the
+    /// builder's working arrays exist, so the peak memory holds one copy of the geometry
+    /// instead of two (18-30 bytes per triangle less).
+    pub fn build_taking(&self, mesh: &mut Mesh) -> Result<Build> {
+        let mesh = std::mem::take(mesh);
+        let triangles = mesh
+            .validate()
+            .map(|()| mesh.corner_triangles())
+            .map_err(sahkd::build::BuildError::InvalidMesh)
+            .context("cannot build the tree")?;
+        drop(mesh);
+        let options = BuildOptions {
+            threads: None,
+            ..self.options
+        };
+        self.install(|| sahkd::build_triangles(triangles, &options))
+            .context("cannot build the tree")
+    }
 }
 
 /// Where a tree is built.

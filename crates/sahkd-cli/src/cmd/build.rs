@@ -181,7 +181,7 @@ impl Built {
             "building {} triangles",
             format::count(loaded.mesh.triangles.len() as u64)
         ));
-        let built = builder.build_on_device(&loaded.mesh);
+        let built = builder.build_on_device_taking(&mut loaded.mesh);
         spinner.finish_and_clear();
         let (build, gpu) = built?;
         Ok(Built {

@@ -54,7 +54,7 @@ pub fn prepare<T>(
                 "building {} triangles",
                 format::count(loaded.mesh.triangles.len() as u64)
             ));
-            let built = builder.build(&loaded.mesh);
+            let built = builder.build_taking(&mut loaded.mesh);
             spinner.finish_and_clear();
             built?
         }
