@@ -92,6 +92,7 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
     // scaled the same way, exactly in f64, and so is every distance, so the answer is the
     // one of the unscaled triangles to the bit.
     let layout = tree.trace_layout();
+    let nodes = layout.nodes(tree);
     let scale = layout.scale as f64;
     let pd = d3(p).map(|x| x * scale);
     let slack = slack(&layout.bounds, pd);
@@ -114,7 +115,7 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
     };
     loop {
         if current.distance2 <= limit {
-            let node = &layout.nodes[current.node as usize];
+            let node = &nodes[current.node as usize];
             if node.is_leaf() {
                 let blocks = layout.leaf_words(node).chunks(BLOCK * WORDS);
                 for (block, i) in blocks.flat_map(|b| (0..b.len() / WORDS).map(move |i| (b, i))) {

@@ -20,7 +20,11 @@
 //!   as the array of `{corners, index}` records before it did.
 //!
 //! The node format is the tree's own ([`Node`]); a leaf's `first` counts triangles before it
-//! here (its words start at `first * WORDS`).
+//! here (its words start at `first * WORDS`). The depth-first builders (the sweep and the
+//! hybrid) already write their nodes in this order and their leaves'
+//! references in leaf order, so when the scale is 1 the renumbered nodes would equal the
+//! tree's: then the layout keeps none of its own and walks the tree's (8 bytes per node, 22
+//! per triangle at 16M, saved).
 //! Corners, planes and box are multiplied by the scene's [`scene_scale`] (1 for most scenes),
 //! and rays' origins with them, so that the ray/triangle test works in float32's range.
 
@@ -42,7 +46,8 @@ pub(crate) struct TriangleRecord {
 
 #[derive(Clone, Debug)]
 pub(crate) struct TraceLayout {
-    pub nodes: Vec<Node>,
+    /// The renumbered nodes, or `None` where they equal the tree's ([`Self::nodes`]).
+    own_nodes: Option<Vec<Node>>,
     /// Leaves' triangles in blocks (see the module's notes): `f32` bits, and the indices.
     pub words: Vec<u32>,
     /// The tree's box, scaled.
@@ -59,14 +64,15 @@ impl TraceLayout {
     pub fn new(tree: &KdTree) -> TraceLayout {
         let old = tree.nodes();
         let scale = scene_scale(&tree.bounds);
-        let mut nodes = vec![Node::leaf(0, 0); old.len().max(1)];
+        let mut own_nodes =
+            (!in_trace_order(old, scale)).then(|| vec![Node::leaf(0, 0); old.len().max(1)]);
         let mut words = Vec::with_capacity(tree.refs().len() * WORDS);
         let mut next = 1u32;
         // (node in the tree, its place here); left children are popped first.
         let mut stack = vec![(0u32, 0u32)];
         while let Some((from, to)) = stack.pop() {
             let node = &old[from as usize];
-            nodes[to as usize] = if node.is_leaf() {
+            let renumbered = if node.is_leaf() {
                 let first = (words.len() / WORDS) as u32;
                 for block in tree.leaf_refs(node).chunks(BLOCK) {
                     let corners: Vec<Triangle> = block
@@ -86,16 +92,27 @@ impl TraceLayout {
                 stack.push((node.left(), pair));
                 Node::interior(node.axis(), node.split() * scale, pair)
             };
+            if let Some(nodes) = own_nodes.as_mut() {
+                nodes[to as usize] = renumbered;
+            }
         }
-        nodes.truncate(next as usize);
+        if let Some(nodes) = own_nodes.as_mut() {
+            nodes.truncate(next as usize);
+        }
         TraceLayout {
-            nodes,
+            own_nodes,
             words,
             bounds: tree.bounds.scaled(scale),
             reach: reach_of(&tree.bounds.scaled(scale)),
             scale,
             inv_scale: 1.0 / scale,
         }
+    }
+
+    /// The nodes to walk: the layout's own, or the tree's where they are the same.
+    #[inline(always)]
+    pub fn nodes<'a>(&'a self, tree: &'a KdTree) -> &'a [Node] {
+        self.own_nodes.as_deref().unwrap_or(tree.nodes())
     }
 
     /// The words of a leaf of this layout: its blocks one after the other.
@@ -112,6 +129,34 @@ impl TraceLayout {
             .chunks(BLOCK * WORDS)
             .flat_map(|block| (0..block.len() / WORDS).map(move |i| block_record(block, i)))
     }
+}
+
+/// Whether renumbering `nodes` as [`TraceLayout::new`] does, with planes times `scale`, would
+/// give them back unchanged: every node keeps its index (a node's children are the next
+/// pair when the depth-first walk reaches it) and every leaf's references start where the
+/// leaves before it in that walk end.
+fn in_trace_order(nodes: &[Node], scale: f32) -> bool {
+    if scale != 1.0 || nodes.is_empty() {
+        return false;
+    }
+    let (mut next, mut refs) = (1u32, 0u32);
+    let mut stack = vec![0u32];
+    while let Some(i) = stack.pop() {
+        let node = &nodes[i as usize];
+        if node.is_leaf() {
+            if node.first() != refs {
+                return false;
+            }
+            refs += node.count();
+        } else {
+            if node.left() != next {
+                return false;
+            }
+            next += 2;
+            stack.extend([node.left() + 1, node.left()]);
+        }
+    }
+    next as usize == nodes.len()
 }
 
 /// Triangle `i` of a block (`block` holds the block's words, so its length gives its size).
@@ -137,11 +182,12 @@ pub(crate) fn reach_of(b: &Aabb) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{build_triangles, BuildOptions};
+    use crate::{build_triangles, Algorithm, BuildOptions};
 
     /// The layout holds the tree's nodes and leaves, renumbered: walking both from the root
     /// side by side meets the same planes and the same triangles, and every node of the layout
-    /// is reached exactly once.
+    /// is reached exactly once. The sweep's and the hybrid's nodes are already in this order and
+    /// are shared; the level and median builders' (breadth first at the top) are copied.
     #[test]
     fn layout_is_the_tree_renumbered() {
         let tris: Vec<Triangle> = (0..400)
@@ -154,16 +200,31 @@ mod tests {
                 ]
             })
             .collect();
-        let tree = build_triangles(tris, &BuildOptions::default())
-            .unwrap()
-            .tree;
-        let layout = TraceLayout::new(&tree);
+        for (algorithm, shared) in [
+            (Algorithm::Hybrid, true),
+            (Algorithm::Sweep, true),
+            (Algorithm::Median, false),
+            (Algorithm::Level, false),
+        ] {
+            let options = BuildOptions {
+                algorithm,
+                ..BuildOptions::default()
+            };
+            let tree = build_triangles(tris.clone(), &options).unwrap().tree;
+            let layout = TraceLayout::new(&tree);
+            assert_eq!(layout.own_nodes.is_none(), shared, "{algorithm:?}");
+            assert_layout_renumbers(&tree, &layout);
+        }
+    }
+
+    fn assert_layout_renumbers(tree: &KdTree, layout: &TraceLayout) {
+        let nodes = layout.nodes(tree);
         assert!(tree.nodes().len() > 50, "a tree worth renumbering");
-        let mut reached = vec![0u32; layout.nodes.len()];
+        let mut reached = vec![0u32; nodes.len()];
         let mut stack = vec![(0u32, 0u32)];
         while let Some((a, b)) = stack.pop() {
             reached[b as usize] += 1;
-            let (old, new) = (&tree.nodes()[a as usize], &layout.nodes[b as usize]);
+            let (old, new) = (&tree.nodes()[a as usize], &nodes[b as usize]);
             assert_eq!(old.is_leaf(), new.is_leaf());
             if old.is_leaf() {
                 let want: Vec<(u32, Triangle)> = tree

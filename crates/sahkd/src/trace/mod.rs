@@ -395,6 +395,7 @@ impl KdTree {
             return;
         }
         let layout = self.trace_layout();
+        let nodes = layout.nodes(self);
         // An origin beyond float32 once scaled lies more than 1e38 scene sizes away.
         let ray = &ray.scaled(layout.scale);
         if !ray.origin.is_finite() {
@@ -421,7 +422,7 @@ impl KdTree {
             // is not always ordered by entry distance.
             if t0 <= limit {
                 counters.node();
-                let node = &layout.nodes[node_index as usize];
+                let node = &nodes[node_index as usize];
                 if !node.is_leaf() {
                     let axis = node.axis();
                     let left = node.left();

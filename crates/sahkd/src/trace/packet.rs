@@ -126,6 +126,7 @@ impl KdTree {
             return;
         }
         let layout = self.trace_layout();
+        let nodes = layout.nodes(self);
         let rays: [Ray; N] = std::array::from_fn(|i| rays[i].scaled(layout.scale));
         let rays = &rays;
         let mut origin = [[0.0f32; N]; 3];
@@ -167,7 +168,7 @@ impl KdTree {
             // The lanes that reach this node and start within their limit.
             let m = mask & !done & le(&t0, &limit);
             if m != 0 {
-                let node = &layout.nodes[node_index as usize];
+                let node = &nodes[node_index as usize];
                 if !node.is_leaf() {
                     let axis = node.axis();
                     let left = node.left();
