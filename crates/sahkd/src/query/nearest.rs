@@ -16,7 +16,7 @@ use super::triangle::{closest_on_triangle, cross, d3, dot, sub, D3};
 use super::ClosestPoint;
 use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::{Aabb, Triangle, Vec3};
-use crate::trace::layout::{block_record, BLOCK, WORDS};
+use crate::tree::layout::{block_record, BLOCK, WORDS};
 use crate::tree::KdTree;
 use std::mem::MaybeUninit;
 

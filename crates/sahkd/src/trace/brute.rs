@@ -4,8 +4,9 @@
 //! traversal, so a tree that loses, misplaces or mis-orders a triangle shows up as a
 //! disagreement with it.
 
-use super::{finish_hit, layout::reach_of, Hit, Ray, ShearedRay};
+use super::{finish_hit, Hit, Ray, ShearedRay};
 use crate::geometry::{scene_scale, triangle_bounds, Aabb, Triangle};
+use crate::tree::layout::reach_of;
 
 /// The scale the tree of these triangles is traced at, the ray scaled by it, and the test.
 fn prepare(triangles: &[Triangle], ray: &Ray) -> Option<(f32, ShearedRay, Ray)> {

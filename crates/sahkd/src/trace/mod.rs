@@ -12,12 +12,11 @@
 //! walk neighbouring rays four at a time (`packet`), with the same answers.
 
 pub mod brute;
-pub(crate) mod layout;
 mod packet;
 pub mod precise;
 mod triangle;
 
-pub(crate) use layout::TraceLayout;
+use crate::tree::layout;
 
 pub use precise::{Hit64, Ray64};
 pub use triangle::{ShearedRay, TriangleHit};
@@ -472,10 +471,5 @@ impl KdTree {
     /// use), so that a caller can time it apart from the queries.
     pub fn prepare_trace(&self) {
         self.trace_layout();
-    }
-
-    /// The traversal layout of this tree, made on first use (also walked by `query`).
-    pub(crate) fn trace_layout(&self) -> &TraceLayout {
-        self.layout.get_or_init(|| TraceLayout::new(self))
     }
 }

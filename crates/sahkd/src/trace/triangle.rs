@@ -16,9 +16,9 @@
 //! each lane's answer is the one-triangle test's, bit for bit; elsewhere it loops over the
 //! one-triangle test.
 
-use super::layout::{block_record, WORDS};
 use super::Ray;
 use crate::geometry::{Triangle, Vec3};
+use crate::tree::layout::{block_record, WORDS};
 
 /// Per-ray constants of the shear.
 #[derive(Clone, Copy, Debug)]

@@ -12,6 +12,7 @@
 //! trees from different builders comparable entry by entry.
 
 pub mod file;
+pub(crate) mod layout;
 mod stats;
 mod validate;
 
@@ -19,7 +20,7 @@ pub use file::{LoadError, TreeMeta};
 pub use stats::TreeStats;
 
 use crate::geometry::{Aabb, Triangle};
-use crate::trace::TraceLayout;
+use layout::TraceLayout;
 use std::sync::OnceLock;
 
 const LEAF: u32 = 3;
@@ -172,6 +173,11 @@ impl KdTree {
     pub fn leaf_refs(&self, leaf: &Node) -> &[u32] {
         let first = leaf.first() as usize;
         &self.refs[first..first + leaf.count() as usize]
+    }
+
+    /// The traversal layout of this tree, made on first use (walked by `trace` and `query`).
+    pub(crate) fn trace_layout(&self) -> &TraceLayout {
+        self.layout.get_or_init(|| TraceLayout::new(self))
     }
 
     /// Calls `f(node_index, node, box, depth)` for every node, depth first, left before right.

@@ -56,7 +56,7 @@ pub(crate) struct TraceLayout {
     pub scale: f32,
     /// `1 / scale`, exact.
     pub inv_scale: f32,
-    /// The scaled box's largest extent (see [`ShearedRay::with_reach`](super::ShearedRay)).
+    /// The scaled box's largest extent (see `ShearedRay::with_reach` in `trace`).
     pub reach: f32,
 }
 
