@@ -221,20 +221,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         dump(dir, &tree, &points)?;
         println!("wrote {dir}");
     }
-    // Closest points per class of the mix, one thread: where the time goes.
+    // Closest points and occupancy per class of the mix, one thread: where the time goes.
     for (class, name) in ["near the surface", "in the box grown 20 %", "in the box x3"]
         .iter()
         .enumerate()
     {
         let some: Vec<Vec3> = points.iter().skip(class).step_by(3).copied().collect();
-        let (med, _, _) = time_median(args.repeat, || {
+        let (closest, _, _) = time_median(args.repeat, || {
             some.iter().for_each(|&p| {
                 std::hint::black_box(tree.closest_point(p));
             })
         });
+        let (inside, _, _) = time_median(args.repeat, || {
+            some.iter().for_each(|&p| {
+                std::hint::black_box(tree.contains(p, InsideTest::Parity));
+            })
+        });
         println!(
-            "1 thread   closest point, {name:22} {:7.3} Mpoints/s",
-            some.len() as f64 / med / 1e6
+            "1 thread   {name:22} closest point {:7.3}, occupancy {:7.3} Mpoints/s",
+            some.len() as f64 / closest / 1e6,
+            some.len() as f64 / inside / 1e6
         );
     }
     for &threads in &args.threads {

@@ -174,6 +174,23 @@ fn closest_point_matches_brute_force_on_random_soups_with_every_builder() {
     }
 }
 
+/// Scenes far outside float32's comfortable range are walked scaled by a power of two (the
+/// trace layout and the nodes' content boxes both): the answers must still be the brute
+/// force's to the bit.
+#[test]
+fn closest_point_matches_brute_force_on_scaled_scenes() {
+    let mut rng = rng(15);
+    let unit = random_triangles(&mut rng, 400);
+    for factor in [2f32.powi(70), 2f32.powi(-70)] {
+        let tris: Vec<Triangle> = unit.iter().map(|t| t.map(|v| v * factor)).collect();
+        let points = query_points(&mut rng, &tris, 300);
+        let tree = build_triangles(tris, &BuildOptions::default())
+            .unwrap()
+            .tree;
+        check_closest(&tree, &points, &format!("scaled by {factor:e}"));
+    }
+}
+
 #[test]
 fn closest_point_handles_the_hard_cases() {
     let mut rng = rng(21);
