@@ -534,8 +534,8 @@ impl PyKdTree {
     }
 
     /// Distance from each point to the mesh, negative inside, (N,) float64; 0 on the surface.
-    /// inside: "parity" (default: majority of three rays' crossing parities; fast, for closed
-    /// meshes) or "winding" (generalized winding number over every face; robust for meshes
+    /// inside: "parity" (default: one ray's crossing parity, three voting where it passes near
+    /// an edge; fast, for closed meshes) or "winding" (generalized winding number over every face; robust for meshes
     /// with holes, but O(faces) per point).
     #[pyo3(signature = (points, inside="parity"), text_signature = "(self, points, inside='parity')")]
     fn signed_distance<'py>(

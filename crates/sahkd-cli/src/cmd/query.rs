@@ -40,8 +40,8 @@ pub struct Args {
     #[arg(long)]
     pub signed: bool,
 
-    /// The inside test of --signed: `parity` (majority of three rays' crossing counts; fast,
-    /// for closed meshes) or `winding` (generalized winding number over every triangle;
+    /// The inside test of --signed: `parity` (one ray's crossing count, three voting where it
+    /// passes near an edge; fast, for closed meshes) or `winding` (generalized winding number over every triangle;
     /// robust for meshes with holes, but O(triangles) per point)
     #[arg(long, value_name = "TEST", default_value = "parity")]
     pub inside_test: InsideTest,

@@ -20,8 +20,9 @@ arrays or anything with a `.numpy()` method.
 
 Differences: several geometries share one kd-tree, rebuilt on the first query after an
 `add_triangles`; closest points are exact (float64, then rounded to float32 like Open3D's
-results); `compute_signed_distance` and `compute_occupancy` take `inside="parity"` (the
-majority of three rays, for closed meshes, like Open3D's assumption) or `inside="winding"`
+results); `compute_signed_distance` and `compute_occupancy` take `inside="parity"` (one
+ray's crossing parity, three voting where it passes near an edge; for closed meshes, like
+Open3D's assumption) or `inside="winding"`
 (the generalized winding number, right also for meshes with holes); `nthreads` and
 `nsamples` are accepted and ignored (the tree's `threads` applies).
 """

@@ -6,8 +6,8 @@
 //!   exactly in f64 (`triangle`). The answer equals the brute force's ([`brute`]) to the
 //!   bit, ties going to the lower triangle index.
 //! - The inside test has two methods ([`InsideTest`]). [`InsideTest::Parity`], the default,
-//!   casts up to three rays and takes the majority of their crossing parities (`parity`):
-//!   a few tree walks per point, and exact for closed meshes away from edge-grazing rays.
+//!   casts one ray, trusted when its crossings lie clear of triangle edges, else three
+//!   that vote (`parity`): one tree walk for most points, and exact for closed meshes.
 //!   [`InsideTest::Winding`] sums the generalized winding number over every triangle
 //!   (`winding`): robust where the mesh has holes, overlaps or stray pieces, but O(N) per
 //!   point, too slow for large meshes and many points; hence not the default.
@@ -61,7 +61,8 @@ impl ClosestPoint {
 /// How [`KdTree::contains`] and [`KdTree::signed_distance`] decide inside from outside.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum InsideTest {
-    /// Majority of three rays' crossing parities: fast, for closed (watertight) meshes.
+    /// One ray's crossing parity, or where it passes near an edge, the majority of three
+    /// rays': fast, for closed (watertight) meshes.
     #[default]
     Parity,
     /// |generalized winding number| > 1/2, summed over every triangle: robust for meshes
