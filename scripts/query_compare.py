@@ -68,6 +68,8 @@ def main():
               f"differs from sahkd on {100 * differ:.3f} % of points off the surface")
     except ImportError as e:
         print(f"open3d not available: {e}")
+    if args.trimesh_points <= 0:
+        return
     try:
         import trimesh
 
