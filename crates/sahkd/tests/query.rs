@@ -175,8 +175,7 @@ fn closest_point_matches_brute_force_on_random_soups_with_every_builder() {
 }
 
 /// Scenes far outside float32's comfortable range are walked scaled by a power of two (the
-/// trace layout and the nodes' content boxes both): the answers must still be the brute
-/// force's to the bit.
+/// trace layout): the answers must still be the brute force's to the bit.
 #[test]
 fn closest_point_matches_brute_force_on_scaled_scenes() {
     let mut rng = rng(15);

@@ -1,26 +1,23 @@
 //! The closest point of the mesh: a depth-first walk of the kd-tree, nearer child first,
-//! that skips every node whose content lies farther than the best triangle found so far.
+//! that skips every node whose box lies farther than the best triangle found so far.
 //!
-//! A triangle's closest point lies in (the closed box of) a leaf that references it, so it
-//! lies in the triangle's box cut by that leaf's cell: the union of these over a leaf's
-//! triangles, and over a subtree's leaves, is the node's *content box* (made once per tree,
-//! on the first query, 24 bytes per node). A node whose content box lies farther than the
-//! best distance cannot hold a better answer. The kd-tree's cells tile the whole scene box,
-//! empty space included, so pruning by the cells alone visited every cell between a far
-//! point and the surface; the content boxes skip empty cells outright and shrink the others
-//! to what they hold, as a bounding volume hierarchy's boxes would. The bound is loosened by
+//! A triangle's closest point lies in (the closed box of) a leaf that references it, so a
+//! leaf farther than the best distance cannot hold a better answer. The bound is loosened by
 //! a slack far above f64 rounding (1e-9 of the coordinates' magnitude, far below f32's
 //! resolution): the walk then tests every triangle whose computed distance could tie or
 //! beat the best, and its answer is the brute force's (`query::brute`) to the bit, ties
-//! going to the lower triangle index. A triangle is skipped without its exact test when its
-//! bounding box or its plane already lies beyond the bound.
+//! going to the lower triangle index.
+//!
+//! A child's distance follows from its parent's by changing one axis's component (the
+//! incremental distance of Arya and Mount), so the walk carries no boxes; a triangle is
+//! skipped without its exact test when its bounding box already lies beyond the bound.
 
 use super::triangle::{closest_on_triangle, cross, d3, dot, sub, D3};
 use super::ClosestPoint;
 use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::{Aabb, Triangle, Vec3};
-use crate::tree::layout::{block_record, TraceLayout, BLOCK, WORDS};
-use crate::tree::{KdTree, Node};
+use crate::tree::layout::{block_record, BLOCK, WORDS};
+use crate::tree::KdTree;
 use std::mem::MaybeUninit;
 
 /// The slack of the pruning bound, relative to the largest coordinate magnitude involved.
@@ -74,57 +71,14 @@ fn beyond_plane(p: D3, c: &Triangle, limit: f64) -> bool {
     h * h > limit * dot(n, n)
 }
 
-/// A node to visit and the squared distance from the point to its content box.
+/// A node to visit: its squared distance from the point, and that distance's components
+/// along each axis (zero where the point lies within the node's extent), from which a
+/// child's distance follows without its box.
 #[derive(Clone, Copy)]
 struct Pending {
     node: u32,
     distance2: f64,
-}
-
-impl KdTree {
-    /// The content box of every node of the trace layout (see the module's notes).
-    fn content_boxes(&self) -> &[Aabb] {
-        self.content_boxes.get_or_init(|| {
-            let layout = self.trace_layout();
-            content_boxes(layout.nodes(self), layout)
-        })
-    }
-}
-
-/// Content boxes of `nodes` (the layout's, whose children come after their parent): the
-/// cells top down, then, bottom up, each leaf's triangles' box cut by its cell and each
-/// interior node's children's union. An empty node's box is `Aabb::EMPTY`, infinitely far.
-fn content_boxes(nodes: &[Node], layout: &TraceLayout) -> Vec<Aabb> {
-    let mut boxes = vec![Aabb::EMPTY; nodes.len()];
-    boxes[0] = layout.bounds;
-    for (i, node) in nodes.iter().enumerate() {
-        if !node.is_leaf() {
-            let (lo, hi) = boxes[i].split(node.axis(), node.split());
-            let left = node.left() as usize;
-            (boxes[left], boxes[left + 1]) = (lo, hi);
-        }
-    }
-    for (i, node) in nodes.iter().enumerate().rev() {
-        boxes[i] = if node.is_leaf() {
-            let held = layout
-                .leaf_words(node)
-                .chunks(BLOCK * WORDS)
-                .flat_map(|b| (0..b.len() / WORDS).map(move |i| block_record(b, i)))
-                .fold(Aabb::EMPTY, |held, r| {
-                    held.union(Aabb::of_points(&r.corners))
-                })
-                .intersection(boxes[i]);
-            if held.is_empty() {
-                Aabb::EMPTY
-            } else {
-                held
-            }
-        } else {
-            let left = node.left() as usize;
-            boxes[left].union(boxes[left + 1])
-        };
-    }
-    boxes
+    offset: [f64; 3],
 }
 
 /// The closest point of the tree's triangles to `p`; `None` for an empty tree or a point
@@ -148,10 +102,16 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
     let mut stack = [MaybeUninit::<Pending>::uninit(); MAX_DEPTH_CAP as usize + 4];
     let mut tested = [u32::MAX; TESTED];
     let mut top = 0usize;
-    let boxes = tree.content_boxes();
+    let b = &layout.bounds;
+    let offset: [f64; 3] = std::array::from_fn(|a| {
+        (b.lo[a] as f64 - pd[a])
+            .max(pd[a] - b.hi[a] as f64)
+            .max(0.0)
+    });
     let mut current = Pending {
         node: 0,
-        distance2: box_distance2(pd, &boxes[0]),
+        distance2: offset.iter().map(|o| o * o).sum(),
+        offset,
     };
     loop {
         if current.distance2 <= limit {
@@ -190,29 +150,29 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
                     }
                 }
             } else {
-                // The child whose content is nearer first; the other waits on the stack
-                // if it could still hold a better answer.
+                let (axis, split) = (node.axis(), node.split());
                 let left = node.left();
-                let (dl, dr) = (
-                    box_distance2(pd, &boxes[left as usize]),
-                    box_distance2(pd, &boxes[left as usize + 1]),
-                );
-                let (near, far) = if dl <= dr {
-                    ((left, dl), (left + 1, dr))
+                // The child holding the point first: it is as far as this node. The other is
+                // as far along this axis as the plane.
+                let (near, far) = if pd[axis] < split as f64 {
+                    (left, left + 1)
                 } else {
-                    ((left + 1, dr), (left, dl))
+                    (left + 1, left)
                 };
-                if far.1 <= limit {
+                let gap = (split as f64 - pd[axis]).abs();
+                let old = current.offset[axis];
+                let far_d2 = current.distance2 - old * old + gap * gap;
+                if far_d2 <= limit {
+                    let mut offset = current.offset;
+                    offset[axis] = gap;
                     stack[top] = MaybeUninit::new(Pending {
-                        node: far.0,
-                        distance2: far.1,
+                        node: far,
+                        distance2: far_d2,
+                        offset,
                     });
                     top += 1;
                 }
-                current = Pending {
-                    node: near.0,
-                    distance2: near.1,
-                };
+                current.node = near;
                 continue;
             }
         }

@@ -434,7 +434,6 @@ fn parse(mut r: Reader<'_>, file_len: usize) -> Result<(KdTree, TreeMeta), Strin
         triangles,
         bounds,
         layout: OnceLock::new(),
-        content_boxes: OnceLock::new(),
     };
     let (splits, complete) = rayon::join(
         || validate::check_splits(&tree),

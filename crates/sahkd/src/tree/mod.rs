@@ -124,9 +124,6 @@ pub struct KdTree {
     pub(crate) bounds: Aabb,
     /// The copy of the tree ray queries walk, made on the first query.
     pub(crate) layout: OnceLock<TraceLayout>,
-    /// Per node of the layout, the box of what it holds, made on the first closest-point
-    /// query (`query::nearest`).
-    pub(crate) content_boxes: OnceLock<Vec<Aabb>>,
 }
 
 impl KdTree {
@@ -152,7 +149,6 @@ impl KdTree {
             triangles,
             bounds,
             layout: OnceLock::new(),
-            content_boxes: OnceLock::new(),
         }
     }
 
