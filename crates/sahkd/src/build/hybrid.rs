@@ -16,7 +16,8 @@
 //! is the same on any number of threads.
 //!
 //! With binning (the default, [`crate::HYBRID_BINS`]; `bins: Some(0)` turns it off) the level
-//! passes are not used: they price every candidate exactly, and where they stop depends on the number of threads, so the tree would too.
+//! passes are not used: they price every candidate exactly, and where they stop depends on
+//! the number of threads, so the tree would too.
 //! The binned sweep builds the tree instead, the two children of each binned node at once
 //! (`sweep::build_binned_parallel`): the tree of `sweep` with the same bins, on every core.
 

@@ -75,10 +75,11 @@ impl TraceLayout {
             let renumbered = if node.is_leaf() {
                 let first = (words.len() / WORDS) as u32;
                 for block in tree.leaf_refs(node).chunks(BLOCK) {
-                    let corners: Vec<Triangle> = block
-                        .iter()
-                        .map(|&prim| tree.triangles()[prim as usize].map(|v| v * scale))
-                        .collect();
+                    let mut held = [[Vec3::splat(0.0); 3]; BLOCK];
+                    for (corners, &prim) in held.iter_mut().zip(block) {
+                        *corners = tree.triangles()[prim as usize].map(|v| v * scale);
+                    }
+                    let corners = &held[..block.len()];
                     for row in 0..9 {
                         words.extend(corners.iter().map(|t| t[row / 3][row % 3].to_bits()));
                     }
