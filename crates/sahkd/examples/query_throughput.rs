@@ -10,7 +10,8 @@
 //! a box three times the bounding box's size. Each query runs `--repeat` times in a rayon pool
 //! of each `--threads` count (`closest_point_batch`, `signed_distance_batch` and
 //! `contains_batch` with the default parity test); the median and min-max Mpoints/s are
-//! printed. `--check K` compares K of the points' closest points with the brute force first.
+//! printed. `--check K` compares K of the points' closest points, single and batched, with
+//! the brute force first.
 //! `--dump DIR` writes `triangles.npy` (F, 3, 3) and `points.npy` (N, 3) as float32, and
 //! sahkd's answers (`distance.npy`, `signed.npy` float64, `inside.npy` as float32 0/1), for
 //! `scripts/query_compare.py`.
@@ -203,13 +204,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let points = make_points(&tree, args.points);
     if let Some(step) = points.len().checked_div(args.check) {
         let step = step.max(1);
+        let batch = tree.closest_point_batch(&points);
         for (i, &p) in points.iter().enumerate().step_by(step) {
-            let (got, want) = (
-                tree.closest_point(p),
-                brute::closest_point(tree.triangles(), p),
-            );
-            if got != want {
-                return Err(format!("point {i} {p:?}: tree {got:?}, brute force {want:?}").into());
+            let want = brute::closest_point(tree.triangles(), p);
+            for (how, got) in [("single", tree.closest_point(p)), ("batch", batch[i])] {
+                if got != want {
+                    let e = format!("point {i} {p:?}: tree ({how}) {got:?}, brute force {want:?}");
+                    return Err(e.into());
+                }
             }
         }
         println!(
@@ -222,15 +224,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!("wrote {dir}");
     }
     // Closest points and occupancy per class of the mix, one thread: where the time goes.
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     for (class, name) in ["near the surface", "in the box grown 20 %", "in the box x3"]
         .iter()
         .enumerate()
     {
         let some: Vec<Vec3> = points.iter().skip(class).step_by(3).copied().collect();
         let (closest, _, _) = time_median(args.repeat, || {
-            some.iter().for_each(|&p| {
-                std::hint::black_box(tree.closest_point(p));
-            })
+            one.install(|| drop(tree.closest_point_batch(&some)))
         });
         let (inside, _, _) = time_median(args.repeat, || {
             some.iter().for_each(|&p| {

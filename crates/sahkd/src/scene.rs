@@ -581,10 +581,10 @@ impl SceneTree {
 
     /// [`closest_point`](Self::closest_point) of every point, on every core.
     pub fn closest_point_batch(&self, points: &[Vec3]) -> Vec<Option<SceneClosestPoint>> {
-        points
-            .par_iter()
-            .with_min_len(MIN_BATCH)
-            .map(|&p| self.closest_point(p))
+        let found = self.tree.closest_point_batch(points);
+        found
+            .into_par_iter()
+            .map(|c| c.map(|c| self.closest(c)))
             .collect()
     }
 
@@ -604,15 +604,21 @@ impl SceneTree {
 
     /// [`signed_distance`](Self::signed_distance) of every point, on every core.
     pub fn signed_distance_batch(&self, points: &[Vec3], test: InsideTest) -> Vec<f64> {
+        let distances = self.tree.distance_batch(points);
         points
             .par_iter()
+            .zip(distances)
             .with_min_len(MIN_BATCH)
-            .map_init(Scratch::default, |s, &p| self.signed_with(p, test, s))
+            .map_init(Scratch::default, |s, (&p, d)| self.signed(p, d, test, s))
             .collect()
     }
 
     fn signed_with(&self, p: Vec3, test: InsideTest, s: &mut Scratch) -> f64 {
-        let d = self.tree.distance(p);
+        self.signed(p, self.tree.distance(p), test, s)
+    }
+
+    /// The distance `d` of `p`, negated when `p` lies inside a geometry.
+    fn signed(&self, p: Vec3, d: f64, test: InsideTest, s: &mut Scratch) -> f64 {
         if d == 0.0 || !d.is_finite() {
             return d;
         }

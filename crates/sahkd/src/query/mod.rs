@@ -17,7 +17,7 @@
 //! whatever the number of threads.
 
 pub mod brute;
-mod nearest;
+pub mod nearest;
 mod parity;
 mod triangle;
 mod winding;
@@ -32,6 +32,51 @@ use rayon::prelude::*;
 
 /// Points handed to a worker at a time: enough to amortise the scheduling.
 const MIN_BATCH: usize = 64;
+
+/// Points walked in one run of hints (in spatial order): the run's first point walks
+/// without one, so runs must be long; and there must be enough of them for every core.
+const HINT_RUN: usize = 256;
+
+/// The indices of `points` sorted along a Morton curve of their box (21 bits per axis),
+/// ties by index: near points become near in the order (non-finite ones anywhere).
+fn spatial_order(points: &[Vec3]) -> Vec<u32> {
+    const CELLS: f64 = (1u64 << 21) as f64;
+    let finite = points.iter().filter(|p| p.is_finite());
+    let (lo, hi) = finite.fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), p| {
+        (
+            std::array::from_fn(|a| lo[a].min(p.0[a] as f64)),
+            std::array::from_fn(|a| hi[a].max(p.0[a] as f64)),
+        )
+    });
+    let cell = |p: &Vec3, a: usize| {
+        let t = (p.0[a] as f64 - lo[a]) / (hi[a] - lo[a]).max(f64::MIN_POSITIVE);
+        ((t * CELLS) as u64).min(CELLS as u64 - 1)
+    };
+    let mut keyed: Vec<(u64, u32)> = points
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let code = if p.is_finite() {
+                spread(cell(p, 0)) | spread(cell(p, 1)) << 1 | spread(cell(p, 2)) << 2
+            } else {
+                0
+            };
+            (code, i as u32)
+        })
+        .collect();
+    keyed.par_sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
+/// The low 21 bits of `x`, two zero bits after each.
+fn spread(x: u64) -> u64 {
+    let mut x = x & 0x1f_ffff;
+    x = (x | x << 32) & 0x1f_0000_0000_ffff;
+    x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+    (x | x << 2) & 0x1249_2492_4924_9249
+}
 
 /// The closest point of a mesh to a query point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -87,9 +132,12 @@ impl KdTree {
     /// The closest point of the mesh to `p`; `None` for an empty mesh or a point with a
     /// non-finite coordinate.
     pub fn closest_point(&self, p: Vec3) -> Option<ClosestPoint> {
-        nearest::closest_point(self, p)
+        nearest::closest_point(self, p, None)
     }
 
+    pub fn closest_point_hinted(&self, p: Vec3, h: Option<u32>) -> Option<ClosestPoint> {
+        nearest::closest_point(self, p, h)
+    }
     /// Distance from `p` to the mesh: infinite for an empty mesh, NaN for a non-finite point.
     pub fn distance(&self, p: Vec3) -> f64 {
         distance_of(self, p, self.closest_point(p))
@@ -113,20 +161,12 @@ impl KdTree {
 
     /// [`closest_point`](Self::closest_point) of every point, on every core.
     pub fn closest_point_batch(&self, points: &[Vec3]) -> Vec<Option<ClosestPoint>> {
-        points
-            .par_iter()
-            .with_min_len(MIN_BATCH)
-            .map(|&p| self.closest_point(p))
-            .collect()
+        self.nearest_batch(points, |_, _, c, _| c)
     }
 
     /// [`distance`](Self::distance) of every point, on every core.
     pub fn distance_batch(&self, points: &[Vec3]) -> Vec<f64> {
-        points
-            .par_iter()
-            .with_min_len(MIN_BATCH)
-            .map(|&p| self.distance(p))
-            .collect()
+        self.nearest_batch(points, |tree, p, c, _| distance_of(tree, p, c))
     }
 
     /// [`contains`](Self::contains) of every point, on every core.
@@ -140,11 +180,9 @@ impl KdTree {
 
     /// [`signed_distance`](Self::signed_distance) of every point, on every core.
     pub fn signed_distance_batch(&self, points: &[Vec3], test: InsideTest) -> Vec<f64> {
-        points
-            .par_iter()
-            .with_min_len(MIN_BATCH)
-            .map_init(Vec::new, |buf, &p| self.signed_distance_with(p, test, buf))
-            .collect()
+        self.nearest_batch(points, |tree, p, c, buf| {
+            tree.signed(p, distance_of(tree, p, c), test, buf)
+        })
     }
 
     /// Closest point and inside flag of every point in one pass, on every core (what
@@ -154,13 +192,40 @@ impl KdTree {
         points: &[Vec3],
         test: InsideTest,
     ) -> Vec<(Option<ClosestPoint>, bool)> {
-        points
-            .par_iter()
-            .with_min_len(MIN_BATCH)
-            .map_init(Vec::new, |buf, &p| {
-                (self.closest_point(p), self.contains_with(p, test, buf))
+        self.nearest_batch(points, |tree, p, c, buf| {
+            (c, tree.contains_with(p, test, buf))
+        })
+    }
+
+    /// `answer(tree, point, closest point, buffer)` of every point, on every core, in the
+    /// points' order. The closest points are found in the spatial order of the points
+    /// (`spatial_order`), each walk bounded from the start by the previous point's triangle:
+    /// neighbours share their nearest triangles, so most walks start with a near-final
+    /// bound. The answers are those of single queries, whatever the order and threads.
+    fn nearest_batch<T: Copy + Send + Sync>(
+        &self,
+        points: &[Vec3],
+        answer: impl Fn(&KdTree, Vec3, Option<ClosestPoint>, &mut Vec<u32>) -> T + Sync,
+    ) -> Vec<T> {
+        let order = spatial_order(points);
+        let answer = &answer;
+        let in_order: Vec<T> = order
+            .par_chunks(HINT_RUN)
+            .flat_map_iter(|run| {
+                let (mut hint, mut buf) = (None, Vec::new());
+                run.iter().map(move |&i| {
+                    let p = points[i as usize];
+                    let c = nearest::closest_point(self, p, hint);
+                    hint = c.map(|c| c.prim).or(hint);
+                    answer(self, p, c, &mut buf)
+                })
             })
-            .collect()
+            .collect();
+        let mut rank = vec![0u32; points.len()];
+        for (k, &i) in order.iter().enumerate() {
+            rank[i as usize] = k as u32;
+        }
+        rank.par_iter().map(|&k| in_order[k as usize]).collect()
     }
 
     /// [`winding_number`](Self::winding_number) of every point, on every core.
@@ -180,7 +245,11 @@ impl KdTree {
     }
 
     fn signed_distance_with(&self, p: Vec3, test: InsideTest, buf: &mut Vec<u32>) -> f64 {
-        let d = self.distance(p);
+        self.signed(p, self.distance(p), test, buf)
+    }
+
+    /// The distance `d` of `p`, negated when `p` lies inside.
+    fn signed(&self, p: Vec3, d: f64, test: InsideTest, buf: &mut Vec<u32>) -> f64 {
         // On the surface the side is moot, and an empty mesh has no inside.
         if d == 0.0 || !d.is_finite() {
             return d;
@@ -198,5 +267,36 @@ fn distance_of(tree: &KdTree, p: Vec3, c: Option<ClosestPoint>) -> f64 {
         Some(c) => c.distance,
         None if tree.triangles.is_empty() && p.is_finite() => f64::INFINITY,
         None => f64::NAN,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spread_puts_two_zero_bits_after_each_bit() {
+        assert_eq!(spread(0b111), 0b1001001);
+        assert_eq!(spread(0x1f_ffff), 0x1249_2492_4924_9249);
+        assert_eq!(spread(1 << 20), 1 << 60);
+    }
+
+    #[test]
+    fn spatial_order_is_a_permutation_with_neighbours_adjacent() {
+        // Two clusters far apart, interleaved in the input: the order keeps each together.
+        let points: Vec<Vec3> = (0..64)
+            .map(|i| {
+                let base = if i % 2 == 0 { 0.0 } else { 100.0 };
+                Vec3::new(base + (i / 2) as f32 * 0.01, base, base)
+            })
+            .chain([Vec3::new(f32::NAN, 0.0, 0.0)])
+            .collect();
+        let order = spatial_order(&points);
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..points.len() as u32).collect::<Vec<_>>());
+        let clusters: Vec<u32> = order.iter().filter(|&&i| i < 64).map(|&i| i % 2).collect();
+        assert!(clusters[..32].iter().all(|&c| c == clusters[0]));
+        assert!(clusters[32..].iter().all(|&c| c != clusters[0]));
     }
 }

@@ -83,7 +83,12 @@ struct Pending {
 
 /// The closest point of the tree's triangles to `p`; `None` for an empty tree or a point
 /// with a non-finite coordinate.
-pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
+///
+/// `hint` names a triangle likely near `p` (a neighbouring point's answer): its distance
+/// bounds the walk from the start, which then skips most of what it would otherwise visit
+/// before finding a good triangle. The answer does not depend on the hint: every triangle
+/// that could tie or beat the best is still tested, and the tie rule is unchanged.
+pub(crate) fn closest_point(tree: &KdTree, p: Vec3, hint: Option<u32>) -> Option<ClosestPoint> {
     if tree.triangles.is_empty() || !p.is_finite() {
         return None;
     }
@@ -99,6 +104,14 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3) -> Option<ClosestPoint> {
     // Best so far: squared distance, triangle, weights; `limit` is the loosened bound.
     let mut best: Option<(f64, u32, [f64; 3])> = None;
     let mut limit = f64::INFINITY;
+    if let Some(prim) = hint.filter(|&h| (h as usize) < tree.triangles.len()) {
+        // The corners as the layout holds them (times a power of two: exact).
+        let corners = tree.triangles[prim as usize].map(|v| v * layout.scale);
+        let found = closest_on_triangle(pd, &corners);
+        best = Some((found.distance2, prim, found.weights));
+        let bound = found.distance2.sqrt() + slack;
+        limit = bound * bound;
+    }
     let mut stack = [MaybeUninit::<Pending>::uninit(); MAX_DEPTH_CAP as usize + 4];
     let mut tested = [u32::MAX; TESTED];
     let mut top = 0usize;
