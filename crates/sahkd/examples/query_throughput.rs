@@ -234,9 +234,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             one.install(|| drop(tree.closest_point_batch(&some)))
         });
         let (inside, _, _) = time_median(args.repeat, || {
-            some.iter().for_each(|&p| {
-                std::hint::black_box(tree.contains(p, InsideTest::Parity));
-            })
+            one.install(|| drop(tree.contains_batch(&some, InsideTest::Parity)))
         });
         println!(
             "1 thread   {name:22} closest point {:7.3}, occupancy {:7.3} Mpoints/s",
