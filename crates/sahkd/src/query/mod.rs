@@ -15,9 +15,9 @@
 //!
 //! Batches run on the current rayon pool, over the points sorted along a Morton curve:
 //! neighbours walk the same nodes while they are cached, and each closest-point walk starts
-//! bounded by its predecessor's triangle (on dragon, 2 threads, the closest points of the
-//! issue's mix 2x faster, occupancy 1.5x). Each point's answer is the single-point answer,
-//! whatever the order and the number of threads.
+//! bounded by its predecessor's triangle (on dragon, 2 threads, closest points of points
+//! near, around and far from the mesh 2x faster, occupancy 1.5x; BENCHMARKS.md). Each
+//! point's answer is the single-point answer, whatever the order and the number of threads.
 
 pub mod brute;
 pub mod nearest;
