@@ -175,7 +175,8 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3, hint: Option<u32>) -> Option
                 let gap = (split as f64 - pd[axis]).abs();
                 let old = current.offset[axis];
                 let far_d2 = current.distance2 - old * old + gap * gap;
-                if far_d2 <= limit {
+                // An empty leaf holds nothing to test: it is neither pushed nor entered.
+                if far_d2 <= limit && !nodes[far as usize].is_empty_leaf() {
                     let mut offset = current.offset;
                     offset[axis] = gap;
                     stack[top] = MaybeUninit::new(Pending {
@@ -185,8 +186,10 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3, hint: Option<u32>) -> Option
                     });
                     top += 1;
                 }
-                current.node = near;
-                continue;
+                if !nodes[near as usize].is_empty_leaf() {
+                    current.node = near;
+                    continue;
+                }
             }
         }
         if top == 0 {
