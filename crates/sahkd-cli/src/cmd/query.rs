@@ -166,8 +166,12 @@ fn query(
         points.len().max(1)
     };
     let bar = progress.bar(points.len() as u64, "querying");
+    // Slices of the points in spatial order, as one batch would walk them; the answers go
+    // back to the input's order at the end.
+    let order = sahkd::query::spatial_order(points);
+    let sorted: Vec<Vec3> = order.iter().map(|&i| points[i as usize]).collect();
     let mut out = Vec::with_capacity(points.len());
-    for chunk in points.chunks(slice) {
+    for chunk in sorted.chunks(slice) {
         match test {
             Some(test) => out.extend(
                 tree.closest_point_signed_batch(chunk, test)
@@ -183,7 +187,11 @@ fn query(
         bar.inc(chunk.len() as u64);
     }
     bar.finish_and_clear();
-    out
+    let mut answers = vec![(None, None); points.len()];
+    for (&i, answer) in order.iter().zip(out) {
+        answers[i as usize] = answer;
+    }
+    answers
 }
 
 /// The distance written for a point without an answer: NaN for a non-finite point,

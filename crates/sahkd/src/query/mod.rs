@@ -64,8 +64,10 @@ fn in_spatial_order<S, T: Copy + Send + Sync>(
 }
 
 /// The indices of `points` sorted along a Morton curve of their box (21 bits per axis),
-/// ties by index: near points become near in the order (non-finite ones anywhere).
-fn spatial_order(points: &[Vec3]) -> Vec<u32> {
+/// ties by index: near points become near in the order (non-finite ones anywhere). The
+/// batch calls use it; a caller that cuts a large batch into slices (to show progress, say)
+/// keeps their speed by slicing the points in this order.
+pub fn spatial_order(points: &[Vec3]) -> Vec<u32> {
     const CELLS: f64 = (1u64 << 21) as f64;
     let finite = points.iter().filter(|p| p.is_finite());
     let (lo, hi) = finite.fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), p| {
