@@ -20,7 +20,7 @@
 //! point's answer is the single-point answer, whatever the order and the number of threads.
 
 pub mod brute;
-pub mod nearest;
+mod nearest;
 mod parity;
 mod triangle;
 mod winding;
@@ -163,9 +163,6 @@ impl KdTree {
         nearest::closest_point(self, p, None)
     }
 
-    pub fn closest_point_hinted(&self, p: Vec3, h: Option<u32>) -> Option<ClosestPoint> {
-        nearest::closest_point(self, p, h)
-    }
     /// Distance from `p` to the mesh: infinite for an empty mesh, NaN for a non-finite point.
     pub fn distance(&self, p: Vec3) -> f64 {
         distance_of(self, p, self.closest_point(p))
