@@ -15,7 +15,7 @@
 //!
 //! Batches run on the current rayon pool, over the points sorted along a Morton curve:
 //! neighbours walk the same nodes while they are cached, and each closest-point walk starts
-//! bounded by its predecessor's triangle (on dragon, 2 threads, closest points of points
+//! bounded by its predecessors' triangles (on dragon, 2 threads, closest points of points
 //! near, around and far from the mesh 2x faster, occupancy 1.5x; BENCHMARKS.md). Each
 //! point's answer is the single-point answer, whatever the order and the number of threads.
 
@@ -37,6 +37,11 @@ use rayon::prelude::*;
 /// walks without a hint, so runs must be long; and there must be enough of them for every
 /// core.
 const RUN: usize = 256;
+
+/// The answers of the last few points (distinct triangles) that bound a batch's next walk:
+/// 3 rather than 1 gave the far points of dragon +4 % (the Morton curve's neighbours are
+/// not always the nearest points), near ones -3 %.
+const HINTS: usize = 3;
 
 /// `answer(state, point)` of every point, in the points' order, computed on every core in
 /// their spatial order (`spatial_order`): neighbours walk the same nodes while they are in
@@ -160,7 +165,7 @@ impl KdTree {
     /// The closest point of the mesh to `p`; `None` for an empty mesh or a point with a
     /// non-finite coordinate.
     pub fn closest_point(&self, p: Vec3) -> Option<ClosestPoint> {
-        nearest::closest_point(self, p, None)
+        nearest::closest_point(self, p, &[])
     }
 
     /// Distance from `p` to the mesh: infinite for an empty mesh, NaN for a non-finite point.
@@ -220,18 +225,23 @@ impl KdTree {
 
     /// `answer(tree, point, closest point, buffer)` of every point, on every core, in the
     /// points' order. The closest points are found in the spatial order of the points, each
-    /// walk bounded from the start by the previous point's triangle: neighbours share their
-    /// nearest triangles, so most walks start with a near-final bound. The answers are those
+    /// walk bounded from the start by the nearest of the last [`HINTS`] points' triangles:
+    /// neighbours share their nearest triangles, so most walks start with a near-final bound. The answers are those
     /// of single queries, whatever the order and threads.
     fn nearest_batch<T: Copy + Send + Sync>(
         &self,
         points: &[Vec3],
         answer: impl Fn(&KdTree, Vec3, Option<ClosestPoint>, &mut Vec<u32>) -> T + Sync,
     ) -> Vec<T> {
-        let start = || (None, Vec::new());
-        in_spatial_order(points, start, |(hint, buf), p| {
-            let c = nearest::closest_point(self, p, *hint);
-            *hint = c.map(|c| c.prim).or(*hint);
+        let start = || ([u32::MAX; HINTS], Vec::new());
+        in_spatial_order(points, start, |(hints, buf), p| {
+            let c = nearest::closest_point(self, p, hints);
+            if let Some(c) = c {
+                if !hints.contains(&c.prim) {
+                    hints.rotate_right(1);
+                    hints[0] = c.prim;
+                }
+            }
             answer(self, p, c, buf)
         })
     }

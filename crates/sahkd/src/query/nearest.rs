@@ -84,11 +84,12 @@ struct Pending {
 /// The closest point of the tree's triangles to `p`; `None` for an empty tree or a point
 /// with a non-finite coordinate.
 ///
-/// `hint` names a triangle likely near `p` (a neighbouring point's answer): its distance
-/// bounds the walk from the start, which then skips most of what it would otherwise visit
-/// before finding a good triangle. The answer does not depend on the hint: every triangle
-/// that could tie or beat the best is still tested, and the tie rule is unchanged.
-pub(crate) fn closest_point(tree: &KdTree, p: Vec3, hint: Option<u32>) -> Option<ClosestPoint> {
+/// `hints` name triangles likely near `p` (neighbouring points' answers; indices out of
+/// range are ignored): the nearest bounds the walk from the start, which then skips most of
+/// what it would otherwise visit before finding a good triangle. The answer does not depend
+/// on the hints: every triangle that could tie or beat the best is still tested, and the
+/// tie rule is unchanged.
+pub(crate) fn closest_point(tree: &KdTree, p: Vec3, hints: &[u32]) -> Option<ClosestPoint> {
     if tree.triangles.is_empty() || !p.is_finite() {
         return None;
     }
@@ -104,13 +105,22 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3, hint: Option<u32>) -> Option
     // Best so far: squared distance, triangle, weights; `limit` is the loosened bound.
     let mut best: Option<(f64, u32, [f64; 3])> = None;
     let mut limit = f64::INFINITY;
-    if let Some(prim) = hint.filter(|&h| (h as usize) < tree.triangles.len()) {
+    for &prim in hints
+        .iter()
+        .filter(|&&h| (h as usize) < tree.triangles.len())
+    {
         // The corners as the layout holds them (times a power of two: exact).
         let corners = tree.triangles[prim as usize].map(|v| v * layout.scale);
         let found = closest_on_triangle(pd, &corners);
-        best = Some((found.distance2, prim, found.weights));
-        let bound = found.distance2.sqrt() + slack;
-        limit = bound * bound;
+        let better = match best {
+            None => true,
+            Some((d2, b, _)) => found.distance2 < d2 || (found.distance2 == d2 && prim < b),
+        };
+        if better {
+            best = Some((found.distance2, prim, found.weights));
+            let bound = found.distance2.sqrt() + slack;
+            limit = bound * bound;
+        }
     }
     let mut stack = [MaybeUninit::<Pending>::uninit(); MAX_DEPTH_CAP as usize + 4];
     let mut tested = [u32::MAX; TESTED];
@@ -203,4 +213,58 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3, hint: Option<u32>) -> Option
         let d2 = d2 / (scale * scale);
         ClosestPoint::new(d2, prim, weights, &tree.triangles[prim as usize])
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::query::brute;
+    use crate::{build_triangles, BuildOptions};
+    use rand::rngs::StdRng;
+    use rand::{Rng, SeedableRng};
+
+    /// Hints change where a walk starts, never its answer: random points against random
+    /// triangles with every triangle twice (ties everywhere), each point walked without
+    /// hints, with the answer's duplicate, with far triangles and with out-of-range indices.
+    #[test]
+    fn answers_do_not_depend_on_the_hints() {
+        let mut rng = StdRng::seed_from_u64(7);
+        let mut point =
+            |rng: &mut StdRng, r: f32| Vec3(std::array::from_fn(|_| rng.random_range(-r..r)));
+        let mut tris: Vec<Triangle> = (0..300)
+            .map(|_| {
+                let c = point(&mut rng, 1.0);
+                [
+                    c + point(&mut rng, 0.1),
+                    c + point(&mut rng, 0.1),
+                    c + point(&mut rng, 0.1),
+                ]
+            })
+            .collect();
+        tris.extend(tris.clone());
+        let n = tris.len() as u32;
+        let tree = build_triangles(tris.clone(), &BuildOptions::default())
+            .unwrap()
+            .tree;
+        for _ in 0..300 {
+            let p = point(&mut rng, 2.5);
+            let want = brute::closest_point(&tris, p);
+            let prim = want.unwrap().prim;
+            let twin = (prim + n / 2) % n;
+            let others = [rng.random_range(0..n), rng.random_range(0..n)];
+            for hints in [
+                &[][..],
+                &[twin][..],
+                &[prim, twin][..],
+                &[others[0], others[1], twin][..],
+                &[n, u32::MAX, others[0]][..],
+            ] {
+                assert_eq!(
+                    closest_point(&tree, p, hints),
+                    want,
+                    "{p:?} with hints {hints:?}"
+                );
+            }
+        }
+    }
 }
