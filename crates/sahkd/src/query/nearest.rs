@@ -229,7 +229,7 @@ mod tests {
     #[test]
     fn answers_do_not_depend_on_the_hints() {
         let mut rng = StdRng::seed_from_u64(7);
-        let mut point =
+        let point =
             |rng: &mut StdRng, r: f32| Vec3(std::array::from_fn(|_| rng.random_range(-r..r)));
         let mut tris: Vec<Triangle> = (0..300)
             .map(|_| {
