@@ -32,6 +32,7 @@ pub use winding::winding_number;
 use crate::geometry::{Triangle, Vec3};
 use crate::tree::KdTree;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 /// Points handed to a worker at a time, in spatial order: the run's first closest point
 /// walks without a hint, so runs must be long; and there must be enough of them for every
@@ -45,13 +46,20 @@ const HINTS: usize = 3;
 
 /// `answer(state, point)` of every point, in the points' order, computed on every core in
 /// their spatial order (`spatial_order`): neighbours walk the same nodes while they are in
-/// the cache. Each run of [`RUN`] points shares one `state`, made by `start`.
+/// the cache. Each run of [`RUN`] points shares one `state`, made by `start`. A point that
+/// `trivial` answers (one outside the mesh's box, say) is neither sorted nor walked.
 fn in_spatial_order<S, T: Copy + Send + Sync>(
     points: &[Vec3],
+    trivial: impl Fn(Vec3) -> Option<T> + Sync,
     start: impl Fn() -> S + Sync,
     answer: impl Fn(&mut S, Vec3) -> T + Sync,
 ) -> Vec<T> {
-    let order = spatial_order(points);
+    let quick: Vec<Option<T>> = points.par_iter().map(|&p| trivial(p)).collect();
+    let walked: Vec<u32> = (0..points.len() as u32)
+        .into_par_iter()
+        .filter(|&i| quick[i as usize].is_none())
+        .collect();
+    let order = sort_spatially(points, walked);
     let (start, answer) = (&start, &answer);
     let in_order: Vec<T> = order
         .par_chunks(RUN)
@@ -61,11 +69,17 @@ fn in_spatial_order<S, T: Copy + Send + Sync>(
                 .map(move |&i| answer(&mut state, points[i as usize]))
         })
         .collect();
-    let mut rank = vec![0u32; points.len()];
-    for (k, &i) in order.iter().enumerate() {
-        rank[i as usize] = k as u32;
-    }
-    rank.par_iter().map(|&k| in_order[k as usize]).collect()
+    // Where each walked point's answer is in `in_order` (disjoint stores, in parallel).
+    let rank: Vec<AtomicU32> = points.par_iter().map(|_| AtomicU32::new(0)).collect();
+    order
+        .par_iter()
+        .enumerate()
+        .for_each(|(k, &i)| rank[i as usize].store(k as u32, Relaxed));
+    quick
+        .par_iter()
+        .zip(&rank)
+        .map(|(q, k)| q.unwrap_or_else(|| in_order[k.load(Relaxed) as usize]))
+        .collect()
 }
 
 /// The indices of `points` sorted along a Morton curve of their box (21 bits per axis),
@@ -73,8 +87,16 @@ fn in_spatial_order<S, T: Copy + Send + Sync>(
 /// batch calls use it; a caller that cuts a large batch into slices (to show progress, say)
 /// keeps their speed by slicing the points in this order.
 pub fn spatial_order(points: &[Vec3]) -> Vec<u32> {
+    sort_spatially(points, (0..points.len() as u32).collect())
+}
+
+/// `indices` of `points` sorted as [`spatial_order`] sorts all of them, in the box of these.
+fn sort_spatially(points: &[Vec3], indices: Vec<u32>) -> Vec<u32> {
     const CELLS: f64 = (1u64 << 21) as f64;
-    let finite = points.iter().filter(|p| p.is_finite());
+    let finite = indices
+        .iter()
+        .map(|&i| &points[i as usize])
+        .filter(|p| p.is_finite());
     let (lo, hi) = finite.fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), p| {
         (
             std::array::from_fn(|a| lo[a].min(p.0[a] as f64)),
@@ -85,16 +107,16 @@ pub fn spatial_order(points: &[Vec3]) -> Vec<u32> {
         let t = (p.0[a] as f64 - lo[a]) / (hi[a] - lo[a]).max(f64::MIN_POSITIVE);
         ((t * CELLS) as u64).min(CELLS as u64 - 1)
     };
-    let mut keyed: Vec<(u64, u32)> = points
-        .par_iter()
-        .enumerate()
-        .map(|(i, p)| {
+    let mut keyed: Vec<(u64, u32)> = indices
+        .into_par_iter()
+        .map(|i| {
+            let p = &points[i as usize];
             let code = if p.is_finite() {
                 spread(cell(p, 0)) | spread(cell(p, 1)) << 1 | spread(cell(p, 2)) << 2
             } else {
                 0
             };
-            (code, i as u32)
+            (code, i)
         })
         .collect();
     keyed.par_sort_unstable();
@@ -201,7 +223,13 @@ impl KdTree {
 
     /// [`contains`](Self::contains) of every point, on every core.
     pub fn contains_batch(&self, points: &[Vec3], test: InsideTest) -> Vec<bool> {
-        in_spatial_order(points, Vec::new, |buf, p| self.contains_with(p, test, buf))
+        // Parity answers a point outside the mesh's box (or not finite) without a walk.
+        let trivial = |p: Vec3| {
+            (test == InsideTest::Parity && !parity::within(&self.bounds, p)).then_some(false)
+        };
+        in_spatial_order(points, trivial, Vec::new, |buf, p| {
+            self.contains_with(p, test, buf)
+        })
     }
 
     /// [`signed_distance`](Self::signed_distance) of every point, on every core.
@@ -234,16 +262,21 @@ impl KdTree {
         answer: impl Fn(&KdTree, Vec3, Option<ClosestPoint>, &mut Vec<u32>) -> T + Sync,
     ) -> Vec<T> {
         let start = || ([u32::MAX; HINTS], Vec::new());
-        in_spatial_order(points, start, |(hints, buf), p| {
-            let c = nearest::closest_point(self, p, hints);
-            if let Some(c) = c {
-                if !hints.contains(&c.prim) {
-                    hints.rotate_right(1);
-                    hints[0] = c.prim;
+        in_spatial_order(
+            points,
+            |_| None,
+            start,
+            |(hints, buf), p| {
+                let c = nearest::closest_point(self, p, hints);
+                if let Some(c) = c {
+                    if !hints.contains(&c.prim) {
+                        hints.rotate_right(1);
+                        hints[0] = c.prim;
+                    }
                 }
-            }
-            answer(self, p, c, buf)
-        })
+                answer(self, p, c, buf)
+            },
+        )
     }
 
     /// [`winding_number`](Self::winding_number) of every point, on every core.

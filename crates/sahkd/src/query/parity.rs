@@ -60,13 +60,17 @@ pub fn direction(k: usize, p: Vec3, bounds: &Aabb) -> Vec3 {
     d
 }
 
+/// Whether `p` lies in the closed box `b` (false for NaN coordinates, which fail both
+/// comparisons); parity answers every other point "outside" without a ray.
+pub(crate) fn within(b: &Aabb, p: Vec3) -> bool {
+    (0..3).all(|a| b.lo[a] <= p[a] && p[a] <= b.hi[a])
+}
+
 /// The first ray's parity when its crossings are clear of edges, else the majority of three
 /// rays' parities; false for a non-finite point or one outside the mesh's bounding box.
 pub(crate) fn inside(tree: &KdTree, p: Vec3, buf: &mut Vec<u32>) -> bool {
     let b = &tree.bounds;
-    let within = (0..3).all(|a| b.lo[a] <= p[a] && p[a] <= b.hi[a]);
-    if !within {
-        // Also false for NaN coordinates, which fail both comparisons.
+    if !within(b, p) {
         return false;
     }
     let vote = |k: usize, buf: &mut Vec<u32>| crossings(tree, p, direction(k, p, b), buf);
