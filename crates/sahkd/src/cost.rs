@@ -18,8 +18,10 @@ pub const MAX_DEPTH_CAP: u32 = 60;
 /// step; this traversal tests a leaf's triangles four at a time, so a triangle costs less
 /// and a node step relatively more. Timed on a quiet machine (BENCHMARKS.md, "The cost
 /// constants, timed"), K_T 45 traced the primary, shadow, AO and bounce rays of dragon and
-/// bunny 5-11 % faster on their geometric mean than 15, Sponza's within 1-4 %, from trees
-/// with 2.5-4.3x fewer nodes built in a half to two thirds of the time. The greedy cost of splitting node `V` at `p` is
+/// bunny 5-11 % faster on their geometric mean than 15, Sponza's from 1 % slower to 4 %
+/// faster, from trees with 2.5-4.3x fewer nodes built in a half to two thirds of the time.
+///
+/// The greedy cost of splitting node `V` at `p` is
 /// `lambda * (K_T + K_I * (SA(V_L) * N_L + SA(V_R) * N_R) / SA(V))`, against `K_I * N` for
 /// keeping `V` a leaf.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
