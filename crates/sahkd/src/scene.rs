@@ -27,7 +27,7 @@
 //! # Design: one tree over every placed triangle
 //!
 //! [`Scene::build`] bakes every placement into world space (corners transformed in f64,
-//! rounded to f32 once) and builds one kd-tree over all of them with [`crate::build`]. The
+//! rounded to f32 once) and builds one kd-tree over all of them with [`crate::build()`]. The
 //! tree's triangles are laid out geometry after geometry, each in its mesh's order, so a tree
 //! triangle index maps to (geometry, primitive) by a binary search in the geometries' start
 //! offsets (4 bytes per geometry, nothing per triangle), and the tree's tie rule (lower

@@ -1,7 +1,7 @@
 //! Builders: from triangles to a [`KdTree`].
 //!
 //! All build parameters live in [`BuildOptions`], with their defaults in one place. Every
-//! builder takes the same [`Primitives`] and returns the same [`BuiltTree`]; [`build`] picks
+//! builder takes the same `Primitives` and returns the same `BuiltTree`; [`build`] picks
 //! the builder, runs it on a thread pool of the requested size, and times it.
 
 mod choice;

@@ -21,7 +21,7 @@ pub enum Algorithm {
     Level,
     /// The level framework with brute-force counting, O(n) per candidate.
     Naive,
-    /// The paper's reference [14]: Zhou, Hou, Wang & Guo 2008 as implemented by Chang, Seo &
+    /// The paper's reference \[14\]: Zhou, Hou, Wang & Guo 2008 as implemented by Chang, Seo &
     /// Ihm 2015. Breadth-first; large nodes cut off empty space or split at the spatial
     /// median, small nodes get exact SAH.
     Median,

@@ -7,7 +7,7 @@
 //! origin lies in the plane, which sends the ray to both children. Leaves test their
 //! triangles against the whole remaining ray `[t_min, best]`, and pending nodes that start
 //! beyond the best hit are dropped. One walk ([`KdTree::for_each_hit`] and the private `walk`)
-//! serves closest hit, any hit and all hits; it runs over the tree's [`layout`] copy, made on
+//! serves closest hit, any hit and all hits; it runs over the tree's `layout` copy, made on
 //! the first query: nodes depth first, leaves' triangles stored in leaf order. The batch calls
 //! walk neighbouring rays four at a time (`packet`), with the same answers.
 

@@ -196,7 +196,7 @@ impl Hits4 {
 
 impl ShearedRay {
     /// [`intersect`](Self::intersect) of the `k` triangles of a block of the trace layout
-    /// (`block` holds its `k * WORDS` words, `2 <= k <= 4`; see [`super::layout`]), one
+    /// (`block` holds its `k * WORDS` words, `2 <= k <= 4`; see `tree::layout`), one
     /// triangle per SSE lane: each coordinate the shear needs is one vector load of a row,
     /// from the row of the axis the ray wants. Lanes `k..4` read the next row's first floats
     /// and are masked off.

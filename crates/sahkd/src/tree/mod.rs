@@ -250,7 +250,7 @@ impl KdTree {
         None
     }
 
-    /// Structure and completeness check; see [`validate`](validate::validate).
+    /// Structure and completeness check; see the `tree::validate` module.
     pub fn validate(&self) -> Result<(), String> {
         validate::validate(self)
     }
