@@ -233,71 +233,132 @@ pub fn triangles(vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>) -> PyRes
     Ok(tris)
 }
 
-/// A ray parameter bound: one value for every ray, or one per ray.
-pub enum Bound1 {
+/// A ray parameter bound: one value for every ray, or one per ray. float32 and float64
+/// arrays are borrowed as they lie (a 1M-ray call used to spend a tenth of its time casting
+/// them to float64 and copying them, serially, with the interpreter held); other numeric
+/// dtypes are converted to float64 by numpy first.
+pub enum Bound1<'py> {
     All(f64),
-    PerRay(Vec<f64>),
+    F32(numpy::PyReadonlyArray1<'py, f32>),
+    F64(numpy::PyReadonlyArray1<'py, f64>),
 }
 
-impl Bound1 {
+impl Bound1<'_> {
+    /// The values, readable from any thread.
+    pub fn view(&self) -> BoundView<'_> {
+        match self {
+            Bound1::All(v) => BoundView::All(*v),
+            Bound1::F32(a) => BoundView::F32(a.as_array()),
+            Bound1::F64(a) => BoundView::F64(a.as_array()),
+        }
+    }
+}
+
+/// A [`Bound1`]'s values.
+#[derive(Clone, Copy)]
+pub enum BoundView<'a> {
+    All(f64),
+    F32(ArrayView1<'a, f32>),
+    F64(ArrayView1<'a, f64>),
+}
+
+impl BoundView<'_> {
     #[inline(always)]
     pub fn get(&self, i: usize) -> f64 {
         match self {
-            Bound1::All(v) => *v,
-            Bound1::PerRay(v) => v[i],
+            BoundView::All(v) => *v,
+            BoundView::F32(a) => a[i] as f64,
+            BoundView::F64(a) => a[i],
+        }
+    }
+
+    /// The first index whose value fails `ok`, if any. A contiguous array is first checked
+    /// whole without stopping early, which the compiler vectorizes.
+    fn first_bad(&self, ok: impl Fn(f64) -> bool) -> Option<usize> {
+        fn first<T: Copy>(a: &ArrayView1<'_, T>, ok: impl Fn(T) -> bool) -> Option<usize> {
+            if let Some(s) = a.as_slice() {
+                if s.iter().fold(true, |all, &v| all & ok(v)) {
+                    return None;
+                }
+            }
+            a.iter().position(|&v| !ok(v))
+        }
+        match self {
+            BoundView::All(v) => (!ok(*v)).then_some(0),
+            BoundView::F32(a) => first(a, |v| ok(v as f64)),
+            BoundView::F64(a) => first(a, ok),
         }
     }
 }
 
-fn ray_bound(obj: &Bound<'_, PyAny>, name: &str, rays: usize, allow_inf: bool) -> PyResult<Bound1> {
-    let check = |i: Option<usize>, v: f64| -> PyResult<f64> {
-        let ok = if allow_inf {
+fn ray_bound<'py>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    rays: usize,
+    allow_inf: bool,
+) -> PyResult<Bound1<'py>> {
+    let ok = |v: f64| {
+        if allow_inf {
             !v.is_nan()
         } else {
             v.is_finite()
-        };
-        if !ok {
-            let at = i.map(|i| format!("[{i}]")).unwrap_or_default();
-            let why = if allow_inf { "NaN" } else { "not finite" };
-            return Err(PyValueError::new_err(format!("{name}{at} is {why}")));
         }
-        Ok(v)
     };
+    let why = if allow_inf { "NaN" } else { "not finite" };
     if obj.cast::<PyUntypedArray>().is_err() {
         if let Ok(v) = obj.extract::<f64>() {
-            return Ok(Bound1::All(check(None, v)?));
+            if !ok(v) {
+                return Err(PyValueError::new_err(format!("{name} is {why}")));
+            }
+            return Ok(Bound1::All(v));
         }
     }
     let arr = ndarray(obj, name)?;
-    let kind = arr.dtype().kind();
+    let dtype = arr.dtype();
+    let (kind, size) = (dtype.kind(), dtype.itemsize());
     if !matches!(kind, b'f' | b'i' | b'u') {
         return Err(PyTypeError::new_err(format!(
             "{name} must be a number or an array of numbers, got dtype {}",
             dtype_name(&arr)
         )));
     }
-    let floats = obj
-        .py()
-        .import("numpy")?
-        .call_method1("asarray", (&arr, "float64"))?;
     let shape = arr.shape().to_vec();
-    match shape.len() {
-        0 => Ok(Bound1::All(check(None, floats.extract::<f64>()?)?)),
-        1 if shape[0] == rays => {
-            let a = floats.cast::<PyArray1<f64>>()?.try_readonly()?;
-            let view: ArrayView1<'_, f64> = a.as_array();
-            let vals = view
-                .iter()
-                .enumerate()
-                .map(|(i, &v)| check(Some(i), v))
-                .collect::<PyResult<Vec<f64>>>()?;
-            Ok(Bound1::PerRay(vals))
+    let bound = match (shape.len(), kind, size) {
+        (1, _, _) if shape[0] != rays => None,
+        (1, b'f', 4) => Some(Bound1::F32(
+            arr.cast_into::<PyArray1<f32>>()?.try_readonly()?,
+        )),
+        (1, b'f', 8) => Some(Bound1::F64(
+            arr.cast_into::<PyArray1<f64>>()?.try_readonly()?,
+        )),
+        (0 | 1, _, _) => {
+            let floats = obj
+                .py()
+                .import("numpy")?
+                .call_method1("asarray", (&arr, "float64"))?;
+            Some(if shape.is_empty() {
+                Bound1::All(floats.extract::<f64>()?)
+            } else {
+                Bound1::F64(floats.cast_into::<PyArray1<f64>>()?.try_readonly()?)
+            })
         }
-        _ => Err(PyValueError::new_err(format!(
+        _ => None,
+    };
+    let Some(bound) = bound else {
+        return Err(PyValueError::new_err(format!(
             "{name} must be a scalar or have shape ({rays},) like the rays, got {}",
             shape_text(&shape)
-        ))),
+        )));
+    };
+    if let Some(i) = bound.view().first_bad(ok) {
+        let at = if shape.is_empty() {
+            String::new()
+        } else {
+            format!("[{i}]")
+        };
+        return Err(PyValueError::new_err(format!("{name}{at} is {why}")));
     }
+    Ok(bound)
 }
 
 /// [`rays`] in double precision, for the f64 queries: float64 input is kept as given.
@@ -316,6 +377,7 @@ pub fn rays64(
     }
     let lo = ray_bound(t_min, "t_min", n, false)?;
     let hi = ray_bound(t_max, "t_max", n, true)?;
+    let (lo, hi) = (lo.view(), hi.view());
     let mut rays = Vec::with_capacity(n);
     visit_points_f64(&o, "origins", "float64", |i, p| {
         rays.push(Ray64::new(p, [0.0; 3]).with_range(lo.get(i), hi.get(i)));
@@ -333,8 +395,8 @@ pub fn rays64(
 pub struct RayInput<'py> {
     pub origins: Points<'py>,
     pub directions: Points<'py>,
-    pub t_min: Bound1,
-    pub t_max: Bound1,
+    pub t_min: Bound1<'py>,
+    pub t_max: Bound1<'py>,
     pub len: usize,
 }
 
@@ -363,7 +425,7 @@ pub fn ray_input<'py>(
 /// The rays of `input`. Non-finite origins, directions or bounds are errors naming the first
 /// bad row; a zero direction or an empty range is a ray that hits nothing.
 pub fn rays(input: &RayInput<'_>) -> PyResult<Vec<Ray>> {
-    let (lo, hi) = (&input.t_min, &input.t_max);
+    let (lo, hi) = (input.t_min.view(), input.t_max.view());
     // Straight into the rays, without a copy of either array on the way.
     let mut rays = Vec::with_capacity(input.len);
     visit_points(&input.origins, "origins", |i, p| {

@@ -14,7 +14,7 @@ use rayon::ThreadPool;
 use sahkd::{Hit, KdTree, Ray, Vec3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::arrays::{Bound1, Points};
+use crate::arrays::{BoundView, Points};
 use crate::columns::HitColumns;
 
 /// Rays converted and traced by one task.
@@ -28,9 +28,12 @@ const EMPTY: Ray = Ray {
     t_max: 0.0,
 };
 
-/// An `(R, 3)` float32 or float64 array, viewed.
+/// An `(R, 3)` float32 or float64 array, viewed: as one slice of rows when C-contiguous (the
+/// common case, read without index arithmetic), else through its strides.
 #[derive(Clone, Copy)]
 pub enum PointView<'a> {
+    F32Rows(&'a [f32]),
+    F64Rows(&'a [f64]),
     F32(ArrayView2<'a, f32>),
     F64(ArrayView2<'a, f64>),
 }
@@ -38,8 +41,16 @@ pub enum PointView<'a> {
 impl<'a> PointView<'a> {
     pub fn of(points: &'a Points<'_>) -> Self {
         match points {
-            Points::F32(a) => PointView::F32(a.as_array()),
-            Points::F64(a) => PointView::F64(a.as_array()),
+            // `to_slice` only for the standard (C) order: a Fortran-ordered array is
+            // contiguous too, column by column.
+            Points::F32(a) => {
+                let v = a.as_array();
+                v.to_slice().map_or(PointView::F32(v), PointView::F32Rows)
+            }
+            Points::F64(a) => {
+                let v = a.as_array();
+                v.to_slice().map_or(PointView::F64(v), PointView::F64Rows)
+            }
         }
     }
 
@@ -48,6 +59,8 @@ impl<'a> PointView<'a> {
     #[inline(always)]
     fn get(&self, i: usize) -> Option<Vec3> {
         let p = match self {
+            PointView::F32Rows(s) => [s[3 * i], s[3 * i + 1], s[3 * i + 2]],
+            PointView::F64Rows(s) => [s[3 * i] as f32, s[3 * i + 1] as f32, s[3 * i + 2] as f32],
             PointView::F32(a) => [a[[i, 0]], a[[i, 1]], a[[i, 2]]],
             PointView::F64(a) => [a[[i, 0]] as f32, a[[i, 1]] as f32, a[[i, 2]] as f32],
         };
@@ -59,8 +72,8 @@ impl<'a> PointView<'a> {
 pub struct RayArrays<'a> {
     pub origins: PointView<'a>,
     pub directions: PointView<'a>,
-    pub t_min: &'a Bound1,
-    pub t_max: &'a Bound1,
+    pub t_min: BoundView<'a>,
+    pub t_max: BoundView<'a>,
     pub len: usize,
 }
 

@@ -211,8 +211,8 @@ fn traced<T: Send>(
     let arrays = batch::RayArrays {
         origins: batch::PointView::of(&input.origins),
         directions: batch::PointView::of(&input.directions),
-        t_min: &input.t_min,
-        t_max: &input.t_max,
+        t_min: input.t_min.view(),
+        t_max: input.t_max.view(),
         len: input.len,
     };
     match py.detach(|| trace(&arrays)) {

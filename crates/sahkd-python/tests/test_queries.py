@@ -203,6 +203,41 @@ def test_non_contiguous_and_list_inputs_are_read_in_place():
     np.testing.assert_array_equal(big_endian.intersect(origins, directions).prim, reference.prim)
 
 
+def test_per_ray_bounds_in_any_layout_and_dtype_give_the_same_answers():
+    # float32 and float64 bounds are read where they lie, other dtypes converted: every form
+    # of the same values traces alike, and a bad value is named by its row.
+    rng = np.random.default_rng(12)
+    vertices, faces = triangle_soup(rng, 200)
+    origins, directions = random_rays(rng, vertices, faces, 300)
+    r = len(origins)
+    t_min = rng.integers(0, 2, r).astype(np.float64) * 0.5
+    t_max = np.where(rng.random(r) < 0.5, rng.integers(1, 4, r), np.inf)
+    tree = sahkd.KdTree(vertices, faces)
+    want = tree.intersect(origins, directions, t_min, t_max)
+    want_any = tree.occluded(origins, directions, t_min, t_max)
+    wide = np.zeros((r, 3))
+    wide[:, 0], wide[:, 2] = t_min, t_max
+    forms = [
+        (t_min.astype(np.float32), t_max.astype(np.float32)),
+        (wide[:, 0], wide[:, 2]),  # strided views
+        (t_min[::-1].copy()[::-1], t_max.astype(np.float16)),
+        ((t_min * 2).astype(np.int64) / 2, np.where(np.isinf(t_max), np.inf, t_max).tolist()),
+    ]
+    for lo, hi in forms:
+        got = tree.intersect(origins, directions, lo, hi)
+        for x, y in zip(got, want):
+            np.testing.assert_array_equal(x, y)
+        np.testing.assert_array_equal(tree.occluded(origins, directions, lo, hi), want_any)
+    bad = t_min.astype(np.float32)
+    bad[7] = np.inf
+    with pytest.raises(ValueError, match=r"t_min\[7\] is not finite"):
+        tree.intersect(origins, directions, bad, t_max)
+    bad = np.array(t_max[::-1])[::-1]
+    bad[250] = np.nan
+    with pytest.raises(ValueError, match=r"t_max\[250\] is NaN"):
+        tree.occluded(origins, directions, t_min, bad)
+
+
 def test_stats_report_the_tree_and_its_options():
     rng = np.random.default_rng(1)
     vertices, faces = triangle_soup(rng, 120)
