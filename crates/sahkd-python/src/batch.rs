@@ -54,17 +54,39 @@ impl<'a> PointView<'a> {
         }
     }
 
-    /// Row `i` in float32, or None where it is not finite in float32 (the rule of
-    /// `arrays::rays`).
+    /// Rows `start..start + n` in float32, `set(k, row)` for the k-th; false if one of them
+    /// is not finite in float32 (the rule of `arrays::rays`). One loop per layout, with the
+    /// layout decided once per block rather than per row.
     #[inline(always)]
-    fn get(&self, i: usize) -> Option<Vec3> {
-        let p = match self {
-            PointView::F32Rows(s) => [s[3 * i], s[3 * i + 1], s[3 * i + 2]],
-            PointView::F64Rows(s) => [s[3 * i] as f32, s[3 * i + 1] as f32, s[3 * i + 2] as f32],
-            PointView::F32(a) => [a[[i, 0]], a[[i, 1]], a[[i, 2]]],
-            PointView::F64(a) => [a[[i, 0]] as f32, a[[i, 1]] as f32, a[[i, 2]] as f32],
+    fn read(&self, start: usize, n: usize, mut set: impl FnMut(usize, Vec3)) -> bool {
+        let mut finite = true;
+        let mut put = |k: usize, p: [f32; 3]| {
+            finite &= p.iter().all(|c| c.is_finite());
+            set(k, Vec3(p));
         };
-        p.iter().all(|c| c.is_finite()).then_some(Vec3(p))
+        match self {
+            PointView::F32Rows(s) => {
+                for (k, r) in s[3 * start..3 * (start + n)].chunks_exact(3).enumerate() {
+                    put(k, [r[0], r[1], r[2]]);
+                }
+            }
+            PointView::F64Rows(s) => {
+                for (k, r) in s[3 * start..3 * (start + n)].chunks_exact(3).enumerate() {
+                    put(k, [r[0] as f32, r[1] as f32, r[2] as f32]);
+                }
+            }
+            PointView::F32(a) => {
+                for (k, i) in (start..start + n).enumerate() {
+                    put(k, [a[[i, 0]], a[[i, 1]], a[[i, 2]]]);
+                }
+            }
+            PointView::F64(a) => {
+                for (k, i) in (start..start + n).enumerate() {
+                    put(k, [a[[i, 0]] as f32, a[[i, 1]] as f32, a[[i, 2]] as f32]);
+                }
+            }
+        }
+        finite
     }
 }
 
@@ -78,19 +100,17 @@ pub struct RayArrays<'a> {
 }
 
 impl RayArrays<'_> {
-    /// Rays `start..start + out.len()` into `out`; false if one of them is not finite.
+    /// Rays `start..start + out.len()` into `out`; false if one of them is not finite. The
+    /// bounds were checked when the call began.
     fn fill(&self, start: usize, out: &mut [Ray]) -> bool {
-        for (k, slot) in out.iter_mut().enumerate() {
-            let i = start + k;
-            match (self.origins.get(i), self.directions.get(i)) {
-                (Some(o), Some(d)) => {
-                    *slot = Ray::new(o, d)
-                        .with_range(self.t_min.get(i) as f32, self.t_max.get(i) as f32)
-                }
-                _ => return false,
-            }
+        let n = out.len();
+        let origins = self.origins.read(start, n, |k, p| out[k].origin = p);
+        let directions = self.directions.read(start, n, |k, d| out[k].direction = d);
+        for (k, ray) in out.iter_mut().enumerate() {
+            ray.t_min = self.t_min.get(start + k) as f32;
+            ray.t_max = self.t_max.get(start + k) as f32;
         }
-        true
+        origins && directions
     }
 
     /// Block `b` of the rays converted into `buf`, or None (and `bad` set) if one of its rows
@@ -127,8 +147,9 @@ pub fn closest(tree: &KdTree, rays: &RayArrays<'_>, pool: &ThreadPool) -> Option
                 let mut hits = [None::<Hit>; BLOCK];
                 let hits = &mut hits[..block.len()];
                 tree.intersect_into(block, hits);
-                for (k, h) in hits.iter().enumerate() {
-                    (t[k], prim[k], u[k], v[k]) = match h {
+                let columns = t.iter_mut().zip(prim).zip(u).zip(v);
+                for ((((t, prim), u), v), h) in columns.zip(hits.iter()) {
+                    (*t, *prim, *u, *v) = match h {
                         Some(h) => (h.t, h.prim as i64, h.u, h.v),
                         None => (f32::INFINITY, -1, 0.0, 0.0),
                     };
