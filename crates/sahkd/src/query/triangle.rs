@@ -13,7 +13,7 @@ pub(crate) type D3 = [f64; 3];
 
 #[inline(always)]
 pub(crate) fn d3(v: crate::Vec3) -> D3 {
-    v.0.map(|c| c as f64)
+    [v[0] as f64, v[1] as f64, v[2] as f64]
 }
 #[inline(always)]
 pub(crate) fn sub(a: D3, b: D3) -> D3 {

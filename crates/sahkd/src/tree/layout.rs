@@ -165,8 +165,11 @@ fn in_trace_order(nodes: &[Node], scale: f32) -> bool {
 pub(crate) fn block_record(block: &[u32], i: usize) -> TriangleRecord {
     let k = block.len() / WORDS;
     let at = |row: usize| f32::from_bits(block[row * k + i]);
+    let corner = |c: usize| Vec3([at(3 * c), at(3 * c + 1), at(3 * c + 2)]);
+    // Written out: `[0, 1, 2].map(corner)` was compiled to an out-of-line call whose
+    // result, stored as floats and reloaded in pairs, stalled the closest-point walk.
     TriangleRecord {
-        corners: [0, 1, 2].map(|c| Vec3([at(3 * c), at(3 * c + 1), at(3 * c + 2)])),
+        corners: [corner(0), corner(1), corner(2)],
         prim: block[9 * k + i],
     }
 }
