@@ -14,6 +14,7 @@ use rayon::ThreadPool;
 use sahkd::{Hit, KdTree, Ray, Vec3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use crate::all_hits;
 use crate::arrays::{BoundView, Points};
 use crate::columns::HitColumns;
 
@@ -170,6 +171,27 @@ pub fn occluded(tree: &KdTree, rays: &RayArrays<'_>, pool: &ThreadPool) -> Optio
                 tree.occluded_into(block, out);
             }
         })
+    });
+    (!bad.into_inner()).then_some(out)
+}
+
+/// How many faces each ray hits, each face once (the walk of `intersect_all`), or None if a
+/// row is not finite.
+pub fn count_hits(tree: &KdTree, rays: &RayArrays<'_>, pool: &ThreadPool) -> Option<Vec<i64>> {
+    let mut out = vec![0i64; rays.len];
+    let bad = AtomicBool::new(false);
+    pool.install(|| {
+        out.par_chunks_mut(BLOCK)
+            .enumerate()
+            .for_each_init(Vec::new, |hits, (b, out)| {
+                let mut buf = [EMPTY; BLOCK];
+                if let Some(block) = rays.block(b, &mut buf, &bad) {
+                    for (count, ray) in out.iter_mut().zip(block) {
+                        all_hits::all_hits(tree, ray, hits);
+                        *count = hits.len() as i64;
+                    }
+                }
+            })
     });
     (!bad.into_inner()).then_some(out)
 }

@@ -201,7 +201,7 @@ fn ray_input<'py>(
     )
 }
 
-/// `batch::closest` or `batch::occluded` on the rays of `input` with the interpreter
+/// `batch::closest`, `batch::occluded` or `batch::count_hits` on the rays of `input` with the interpreter
 /// released; a row that is not finite is reported by the serial reader, which names it.
 fn traced<T: Send>(
     py: Python<'_>,
@@ -457,20 +457,11 @@ impl PyKdTree {
         t_min: Option<&Bound<'py, PyAny>>,
         t_max: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
-        let rays = ray_args(origins, directions, t_min, t_max)?;
+        let input = ray_input(origins, directions, t_min, t_max)?;
         let pool = self.pool()?;
-        let tree = &self.tree;
-        let counts: Vec<i64> = py.detach(|| {
-            pool.install(|| {
-                rays.par_iter()
-                    .with_min_len(64)
-                    .map_init(Vec::new, |buf, r| {
-                        all_hits::all_hits(tree, r, buf);
-                        buf.len() as i64
-                    })
-                    .collect()
-            })
-        });
+        let counts = traced(py, &input, |rays| {
+            batch::count_hits(&self.tree, rays, &pool)
+        })?;
         Ok(PyArray1::from_vec(py, counts))
     }
 

@@ -215,6 +215,7 @@ def test_per_ray_bounds_in_any_layout_and_dtype_give_the_same_answers():
     tree = sahkd.KdTree(vertices, faces)
     want = tree.intersect(origins, directions, t_min, t_max)
     want_any = tree.occluded(origins, directions, t_min, t_max)
+    want_count = tree.count_hits(origins, directions, t_min, t_max)
     wide = np.zeros((r, 3))
     wide[:, 0], wide[:, 2] = t_min, t_max
     forms = [
@@ -228,6 +229,10 @@ def test_per_ray_bounds_in_any_layout_and_dtype_give_the_same_answers():
         for x, y in zip(got, want):
             np.testing.assert_array_equal(x, y)
         np.testing.assert_array_equal(tree.occluded(origins, directions, lo, hi), want_any)
+        np.testing.assert_array_equal(tree.count_hits(origins, directions, lo, hi), want_count)
+    # The same in every layout of the rays themselves (count_hits reads them as the others do).
+    for o, d in [(origins.astype(np.float64), directions[::-1].copy()[::-1]), (np.asfortranarray(origins), directions)]:
+        np.testing.assert_array_equal(tree.count_hits(o, d, t_min, t_max), want_count)
     bad = t_min.astype(np.float32)
     bad[7] = np.inf
     with pytest.raises(ValueError, match=r"t_min\[7\] is not finite"):
@@ -236,6 +241,12 @@ def test_per_ray_bounds_in_any_layout_and_dtype_give_the_same_answers():
     bad[250] = np.nan
     with pytest.raises(ValueError, match=r"t_max\[250\] is NaN"):
         tree.occluded(origins, directions, t_min, bad)
+    with pytest.raises(ValueError, match=r"t_max\[250\] is NaN"):
+        tree.count_hits(origins, directions, t_min, bad)
+    bad_origins = np.asfortranarray(origins)
+    bad_origins[123, 1] = np.nan
+    with pytest.raises(ValueError, match=r"origins\[123\] = .* is not finite"):
+        tree.count_hits(bad_origins, directions)
 
 
 def test_stats_report_the_tree_and_its_options():
