@@ -9,6 +9,9 @@ use rayon::ThreadPool;
 use sahkd::Vec3;
 
 use crate::arrays;
+use rayon::prelude::*;
+use sahkd::scene::SceneTree;
+use sahkd::Hit;
 
 /// The columns of a batch of closest hits: (t, prim, u, v), plus geometry_id for scenes.
 pub struct HitColumns<F> {
@@ -17,6 +20,34 @@ pub struct HitColumns<F> {
     u: Vec<F>,
     v: Vec<F>,
     geometry: Option<Vec<i64>>,
+}
+
+impl HitColumns<f32> {
+    /// The columns of a scene's tree ([`SceneTree::tree`]) as the scene names its hits
+    /// ([`SceneTree::scene_hit`]: geometry, primitive within it, barycentrics in its corner
+    /// order), with the geometry_id column; misses keep -1. On the current rayon pool.
+    pub fn in_scene(mut self, scene: &SceneTree) -> Self {
+        let mut geometry = vec![-1i64; self.prim.len()];
+        self.prim
+            .par_iter_mut()
+            .zip(self.u.par_iter_mut())
+            .zip(self.v.par_iter_mut())
+            .zip(geometry.par_iter_mut())
+            .with_min_len(1024)
+            .for_each(|(((prim, u), v), g)| {
+                if let Ok(index) = u32::try_from(*prim) {
+                    let h = scene.scene_hit(Hit {
+                        t: 0.0,
+                        prim: index,
+                        u: *u,
+                        v: *v,
+                    });
+                    (*prim, *u, *v, *g) = (h.prim as i64, h.u, h.v, h.geometry as i64);
+                }
+            });
+        self.geometry = Some(geometry);
+        self
+    }
 }
 
 impl<F: Element + Copy> HitColumns<F> {

@@ -17,7 +17,7 @@ use sahkd::scene::{Scene, SceneTree, Transform};
 
 use crate::columns::{per_point, ClosestColumns, HitColumns};
 use crate::{arrays, inside_arg, is_f64, namedtuple, options, pool_of, threads_arg};
-use crate::{ray_args, ray_args64};
+use crate::{batch, ray_args64, ray_input, traced};
 
 static SCENE_HITS: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static SCENE_CLOSEST: PyOnceLock<Py<PyType>> = PyOnceLock::new();
@@ -242,12 +242,11 @@ impl PyScene {
             });
             return hits.call1(columns.into_tuple(py)?);
         }
-        let rays = ray_args(origins, directions, t_min, t_max)?;
-        let columns = py.detach(|| {
-            let found = pool.install(|| tree.intersect_batch(&rays));
-            HitColumns::new(&found, f32::INFINITY, 0.0, |h| (h.t, h.prim, h.u, h.v))
-                .and_geometry(&found, |h| h.geometry)
-        });
+        let input = ray_input(origins, directions, t_min, t_max)?;
+        let columns = traced(py, &input, |rays| {
+            let columns = batch::closest(tree.tree(), rays, &pool)?;
+            Some(pool.install(|| columns.in_scene(tree)))
+        })?;
         hits.call1(columns.into_tuple(py)?)
     }
 
@@ -271,8 +270,8 @@ impl PyScene {
             let rays = ray_args64(origins, directions, t_min, t_max)?;
             py.detach(|| pool.install(|| tree.occluded_batch_f64(&rays)))
         } else {
-            let rays = ray_args(origins, directions, t_min, t_max)?;
-            py.detach(|| pool.install(|| tree.occluded_batch(&rays)))
+            let input = ray_input(origins, directions, t_min, t_max)?;
+            traced(py, &input, |rays| batch::occluded(tree.tree(), rays, &pool))?
         };
         Ok(PyArray1::from_vec(py, hit))
     }

@@ -294,6 +294,13 @@ def test_bad_input_is_refused_clearly():
         scene.build(algorithm="hybrid", bins=1)
     scene.build(algorithm="hybrid", bins=2)
     scene.intersect(o, d)
+    rows = np.zeros((300, 3), np.float32)
+    rows[201] = [0, np.inf, 0]
+    for query in (scene.intersect, scene.occluded):
+        with pytest.raises(ValueError, match=r"origins\[201\] = .* is not finite"):
+            query(rows, np.ones((300, 3), np.float32))
+        with pytest.raises(ValueError, match=r"t_max\[7\] is NaN"):
+            query(rows[:10] * 0, np.ones((10, 3)), 0.0, np.where(np.arange(10) == 7, np.nan, 1.0))
     bad_transforms = [
         (affine(np.diag([np.nan, 1, 1]), [0, 0, 0]), r"transform: entry \[0\]\[0\] is NaN"),
         (affine(np.eye(3), [np.inf, 0, 0]), r"entry \[0\]\[3\] is inf"),

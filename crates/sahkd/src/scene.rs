@@ -442,7 +442,9 @@ impl SceneTree {
         })
     }
 
-    fn hit(&self, h: Hit) -> SceneHit {
+    /// A hit of the scene's tree ([`tree`](Self::tree)) as the scene names it: the geometry,
+    /// the primitive within it and the barycentrics in the geometry's own corner order.
+    pub fn scene_hit(&self, h: Hit) -> SceneHit {
         let (geometry, prim) = self.locate(h.prim);
         let (u, v) = if self.mirrored[geometry as usize] {
             (h.v, h.u)
@@ -492,7 +494,7 @@ impl SceneTree {
 
     /// The closest hit; ties in t go to the lower geometry id, then the lower primitive.
     pub fn intersect(&self, ray: &Ray) -> Option<SceneHit> {
-        self.tree.intersect(ray).map(|h| self.hit(h))
+        self.tree.intersect(ray).map(|h| self.scene_hit(h))
     }
 
     /// Whether anything is hit in `[ray.t_min, ray.t_max]`.
@@ -507,7 +509,7 @@ impl SceneTree {
         // A triangle in several leaves is reported once per leaf, each time the same.
         hits.sort_unstable_by(|a, b| a.t.total_cmp(&b.t).then(a.prim.cmp(&b.prim)));
         hits.dedup_by_key(|h| h.prim);
-        hits.into_iter().map(|h| self.hit(h)).collect()
+        hits.into_iter().map(|h| self.scene_hit(h)).collect()
     }
 
     /// [`intersect`](Self::intersect) in f64 (see [`KdTree::intersect_f64`]).
@@ -525,7 +527,7 @@ impl SceneTree {
         let hits = self.tree.intersect_batch(rays);
         hits.into_par_iter()
             .with_min_len(1024)
-            .map(|h| h.map(|h| self.hit(h)))
+            .map(|h| h.map(|h| self.scene_hit(h)))
             .collect()
     }
 
