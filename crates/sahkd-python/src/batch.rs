@@ -6,7 +6,9 @@
 //! columns. No intermediate array of rays or of hits is made, and the conversion runs on every
 //! core with the interpreter released: this is what keeps the Python call at the speed of the
 //! Rust batch call. A row that is not finite stops the work; the serial reader
-//! (`arrays::rays`) then names the first bad row, as it always did.
+//! (`arrays::rays`) then names the first bad row, as it always did. Every float32 ray call
+//! of the package comes this way: KdTree's intersect, occluded, count_hits, intersect_all
+//! (through [`per_block`]) and Scene's intersect and occluded.
 
 use numpy::ndarray::ArrayView2;
 use rayon::prelude::*;
@@ -194,4 +196,24 @@ pub fn count_hits(tree: &KdTree, rays: &RayArrays<'_>, pool: &ThreadPool) -> Opt
             })
     });
     (!bad.into_inner()).then_some(out)
+}
+
+/// `answer` of each block of rays, in order, or None if a row is not finite: for the calls
+/// whose answers vary in size from ray to ray (every hit of each ray).
+pub fn per_block<T: Send>(
+    rays: &RayArrays<'_>,
+    pool: &ThreadPool,
+    answer: impl Fn(&[Ray]) -> T + Sync,
+) -> Option<Vec<T>> {
+    let bad = AtomicBool::new(false);
+    let answers: Vec<Option<T>> = pool.install(|| {
+        (0..rays.len.div_ceil(BLOCK))
+            .into_par_iter()
+            .map(|b| {
+                let mut buf = [EMPTY; BLOCK];
+                rays.block(b, &mut buf, &bad).map(&answer)
+            })
+            .collect()
+    });
+    answers.into_iter().collect()
 }

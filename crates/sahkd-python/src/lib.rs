@@ -23,16 +23,13 @@ use pyo3::prelude::*;
 use pyo3::pybacked::PyBackedBytes;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBytes, PyDict, PyTuple, PyType};
-use rayon::prelude::*;
 use rayon::ThreadPool;
-use sahkd::{Hit, InsideTest, KdTree, LoadError, Ray, TreeMeta as Meta, TreeStats};
+use sahkd::{Hit, InsideTest, KdTree, LoadError, TreeMeta as Meta, TreeStats};
 
 /// Nodes as (N, 2) words and the references, as `_structure` returns them.
 type Structure<'py> = (Bound<'py, PyArray2<u32>>, Bound<'py, PyArray1<u32>>);
 
 /// Rays handed to one worker at a time by the all-hits queries.
-const RAY_CHUNK: usize = 256;
-
 /// A kd-tree over a triangle mesh, for batched ray queries from numpy.
 ///
 /// vertices: (V, 3) float32 or float64 array; faces: (F, 3) array of any integer type,
@@ -119,40 +116,35 @@ impl PyKdTree {
     fn all_hits<'py>(
         &self,
         py: Python<'py>,
-        rays: Vec<Ray>,
+        input: &arrays::RayInput<'py>,
         max_hits: Option<usize>,
         walk: Walk,
     ) -> PyResult<Bound<'py, PyAny>> {
         let pool = self.pool()?;
-        let tree = &self.tree;
-        let (flat, counts) = py.detach(|| {
-            pool.install(|| {
-                let chunks: Vec<(Vec<Hit>, Vec<u32>)> = rays
-                    .par_chunks(RAY_CHUNK)
-                    .map(|chunk| {
-                        let (mut flat, mut counts, mut buf) = (Vec::new(), Vec::new(), Vec::new());
-                        for r in chunk {
-                            match walk {
-                                Walk::Tree => all_hits::all_hits(tree, r, &mut buf),
-                                Walk::Brute => all_hits::brute_all_hits(tree, r, &mut buf),
-                            }
-                            buf.truncate(max_hits.unwrap_or(usize::MAX));
-                            counts.push(buf.len() as u32);
-                            flat.extend_from_slice(&buf);
-                        }
-                        (flat, counts)
-                    })
-                    .collect();
-                let total = chunks.iter().map(|(f, _)| f.len()).sum();
-                let mut flat = Vec::with_capacity(total);
-                let mut counts = Vec::with_capacity(rays.len());
-                for (f, c) in chunks {
-                    flat.extend(f);
-                    counts.extend(c);
+        let (tree, rows) = (&self.tree, input.len);
+        let (flat, counts) = traced(py, input, |rays| {
+            let blocks = batch::per_block(rays, &pool, |block| {
+                let (mut flat, mut counts, mut buf) = (Vec::new(), Vec::new(), Vec::new());
+                for r in block {
+                    match walk {
+                        Walk::Tree => all_hits::all_hits(tree, r, &mut buf),
+                        Walk::Brute => all_hits::brute_all_hits(tree, r, &mut buf),
+                    }
+                    buf.truncate(max_hits.unwrap_or(usize::MAX));
+                    counts.push(buf.len() as u32);
+                    flat.extend_from_slice(&buf);
                 }
                 (flat, counts)
-            })
-        });
+            })?;
+            let total = blocks.iter().map(|(f, _)| f.len()).sum();
+            let mut flat: Vec<Hit> = Vec::with_capacity(total);
+            let mut counts = Vec::with_capacity(rows);
+            for (f, c) in blocks {
+                flat.extend(f);
+                counts.extend(c);
+            }
+            Some((flat, counts))
+        })?;
         let mut offsets = Vec::with_capacity(counts.len() + 1);
         offsets.push(0i64);
         let mut at = 0i64;
@@ -172,15 +164,6 @@ impl PyKdTree {
             PyArray1::from_vec(py, offsets),
         ))
     }
-}
-
-fn ray_args(
-    origins: &Bound<'_, PyAny>,
-    directions: &Bound<'_, PyAny>,
-    t_min: Option<&Bound<'_, PyAny>>,
-    t_max: Option<&Bound<'_, PyAny>>,
-) -> PyResult<Vec<Ray>> {
-    arrays::rays(&ray_input(origins, directions, t_min, t_max)?)
 }
 
 /// The checked arrays of a ray batch, with the default bounds [0, inf).
@@ -489,8 +472,8 @@ impl PyKdTree {
                 )))
             }
         };
-        let rays = ray_args(origins, directions, t_min, t_max)?;
-        self.all_hits(py, rays, max_hits, Walk::Tree)
+        let input = ray_input(origins, directions, t_min, t_max)?;
+        self.all_hits(py, &input, max_hits, Walk::Tree)
     }
 
     /// The closest point of the mesh to each point, as Closest(point, distance, prim):
@@ -580,8 +563,8 @@ impl PyKdTree {
         t_min: Option<&Bound<'py, PyAny>>,
         t_max: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let rays = ray_args(origins, directions, t_min, t_max)?;
-        self.all_hits(py, rays, None, Walk::Brute)
+        let input = ray_input(origins, directions, t_min, t_max)?;
+        self.all_hits(py, &input, None, Walk::Brute)
     }
 
     /// The tree, its build options and timings as bytes (the .sahkd file format).

@@ -230,9 +230,14 @@ def test_per_ray_bounds_in_any_layout_and_dtype_give_the_same_answers():
             np.testing.assert_array_equal(x, y)
         np.testing.assert_array_equal(tree.occluded(origins, directions, lo, hi), want_any)
         np.testing.assert_array_equal(tree.count_hits(origins, directions, lo, hi), want_count)
-    # The same in every layout of the rays themselves (count_hits reads them as the others do).
+    # The same in every layout of the rays themselves (count_hits and intersect_all read them
+    # as the others do).
+    want_all = tree.intersect_all(origins, directions, t_min, t_max)
     for o, d in [(origins.astype(np.float64), directions[::-1].copy()[::-1]), (np.asfortranarray(origins), directions)]:
         np.testing.assert_array_equal(tree.count_hits(o, d, t_min, t_max), want_count)
+        for x, y in zip(tree.intersect_all(o, d, t_min, t_max), want_all):
+            np.testing.assert_array_equal(x, y)
+    np.testing.assert_array_equal(np.diff(want_all.offsets), want_count)
     bad = t_min.astype(np.float32)
     bad[7] = np.inf
     with pytest.raises(ValueError, match=r"t_min\[7\] is not finite"):
@@ -245,8 +250,9 @@ def test_per_ray_bounds_in_any_layout_and_dtype_give_the_same_answers():
         tree.count_hits(origins, directions, t_min, bad)
     bad_origins = np.asfortranarray(origins)
     bad_origins[123, 1] = np.nan
-    with pytest.raises(ValueError, match=r"origins\[123\] = .* is not finite"):
-        tree.count_hits(bad_origins, directions)
+    for query in (tree.count_hits, tree.intersect_all):
+        with pytest.raises(ValueError, match=r"origins\[123\] = .* is not finite"):
+            query(bad_origins, directions)
 
 
 def test_stats_report_the_tree_and_its_options():
