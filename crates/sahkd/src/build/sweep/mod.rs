@@ -83,8 +83,9 @@ pub(crate) struct Subtree<'a> {
     /// depth first (Wald and Havran's rule).
     pub budget: usize,
     /// With subtrees built at once: the references of the whole tree so far, which every
-    /// split adds to and which must stay within `budget` too (a guard on memory: the order of
-    /// the additions varies, so a build that hits it is not deterministic, see `hybrid`).
+    /// split adds to (through the subtree's `Claims`) and which must stay within `budget` too
+    /// (a guard on memory: the order of the additions varies, so a build that hits it is not
+    /// deterministic, see `hybrid`).
     pub shared_total: Option<&'a AtomicUsize>,
 }
 
