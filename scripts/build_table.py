@@ -11,7 +11,8 @@ Every configuration is one warm-up build and `--repeat` timed builds of `sahkd b
 scripts/embree_build.py in the same run (needs embreex in the interpreter running this),
 under `taskset -c 0` for one thread. `--baseline` adds the serial sweep of another sahkd
 binary (e.g. one built at an older commit), to compare sweeps at identical trees: its rows
-must give the same nodes, references and SAH cost. Prints one markdown table with medians
+must give the same nodes, references and SAH cost; `--baseline-kt 15` times this binary's sweep
+again at the baseline's K_T (15 before session 13) for that comparison. Prints one markdown table with medians
 and min-max, and the load average before and after each mesh.
 """
 
@@ -59,11 +60,11 @@ def pinned(threads):
     return ["taskset", "-c", "0"] if threads == 1 else []
 
 
-def sahkd(binary, mesh, algorithm, axes, threads, repeat, bins=None):
+def sahkd(binary, mesh, algorithm, axes, threads, repeat, bins=None, extra=()):
     cmd = pinned(threads) + [
         binary, "build", mesh, "--algorithm", algorithm, "--axes", axes,
         "--threads", str(threads), "--json", "--quiet",
-    ] + ([] if bins is None else ["--bins", str(bins)])
+    ] + ([] if bins is None else ["--bins", str(bins)]) + list(extra)
     run(cmd)
     reports = [json.loads(run(cmd)) for _ in range(repeat)]
     times = [r["build_ms"] for r in reports]
@@ -97,6 +98,9 @@ def main():
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--sahkd", default=os.path.join(ROOT, "target", "release", "sahkd"))
     p.add_argument("--baseline", help="another sahkd binary whose serial sweep is timed beside")
+    p.add_argument("--baseline-kt", type=float,
+                   help="the baseline's default K_T, where it differs from this binary's: this "
+                        "binary's sweep is timed again with --kt K, so that both build one tree")
     args = p.parse_args()
     scenes = os.environ.get("SAHKD_SCENES", os.path.join(ROOT, "..", "shared", "scenes"))
     print("| scene | builder (axes) | threads | build ms, median (min-max) | / Embree same threads "
@@ -113,6 +117,10 @@ def main():
             rows.append((f"{a} ({x}{binned})", t, r))
         if args.baseline:
             for axes in ["longest", "all"]:
+                if args.baseline_kt is not None:
+                    rows.append((f"sweep ({axes}, K_T {args.baseline_kt:g})", 1,
+                                 sahkd(args.sahkd, mesh, "sweep", axes, 1, args.repeat,
+                                       extra=["--kt", str(args.baseline_kt)])))
                 rows.append((f"sweep ({axes}), baseline binary", 1,
                              sahkd(args.baseline, mesh, "sweep", axes, 1, args.repeat)))
         bvh = {t: embree(mesh, t, args.repeat) for t in (2, 1)}
@@ -125,7 +133,9 @@ def main():
         print(f"| | Embree 4 BVH | 2 / 1 | {spread(bvh[2])} / {spread(bvh[1])} | 1 | (BVH) | | | |", flush=True)
         if args.baseline:
             for axes in ["longest", "all"]:
-                new = next(r for b, t, r in rows if b.startswith(f"sweep ({axes}") and "baseline" not in b)
+                mine = f"sweep ({axes}, K_T {args.baseline_kt:g})" if args.baseline_kt is not None \
+                    else f"sweep ({axes})"
+                new = next(r for b, t, r in rows if b == mine)
                 old = next(r for b, t, r in rows if b == f"sweep ({axes}), baseline binary")
                 # The SAH cost is summed in the report's own order: equal to rounding.
                 same = (new["nodes"], new["refs"]) == (old["nodes"], old["refs"]) and \

@@ -109,6 +109,34 @@ fn binned_trees_are_the_same_on_any_thread_count() {
     }
 }
 
+/// Below the threshold a parallel build splits the biggest nodes by the sweep's own search and
+/// builds their children at once (`FORK_SHARE` in `build/sweep/binned.rs`; every node here
+/// over 1024 triangles at 2 or 3 threads): the tree is still the one-thread exact sweep's.
+#[test]
+fn nodes_split_at_once_below_the_threshold_give_the_sweeps_tree() {
+    let tris = random_triangles(&mut rng(61), 6000);
+    for axes in [Axes::Longest, Axes::All] {
+        for clip in [true, false] {
+            let options = |algorithm, bins, threads| BuildOptions {
+                axes,
+                clip,
+                ..binned(algorithm, bins, threads)
+            };
+            let want = build_triangles(tris.clone(), &options(Algorithm::Sweep, 0, 1))
+                .unwrap()
+                .tree;
+            for threads in [2, 3] {
+                let got = build_triangles(tris.clone(), &options(Algorithm::Hybrid, 256, threads))
+                    .unwrap()
+                    .tree;
+                let what = format!("{axes:?}, clip {clip}, {threads} threads");
+                assert_eq!(got.nodes(), want.nodes(), "{what}: nodes");
+                assert_eq!(got.refs(), want.refs(), "{what}: references");
+            }
+        }
+    }
+}
+
 /// Binning changes the tree only where a node is over the threshold: a scene at it gets the
 /// exact tree, one over it a different one (else the test tests nothing).
 #[test]

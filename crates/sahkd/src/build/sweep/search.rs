@@ -5,7 +5,7 @@
 //! `p` are the primitives with `lo < p`; `R` starts at `n` and drops by the ends and planars
 //! at or before `p`. The planars at `p` are `P`.
 
-use super::events::{kind, plane_bits, pos_bits, Event, END, PLANAR};
+use super::events::{self, kind, plane_bits, pos_bits, Event, END, PLANAR};
 use crate::build::choice::Ranked;
 use crate::build::event::unordered;
 use crate::build::Axes;
@@ -66,6 +66,30 @@ pub(super) fn best_split(
         }
     }
     best
+}
+
+/// The split [`best_split`] finds for a node whose references have `boxes`, from events made
+/// and sorted here for the axes it prices: the sweep's choice for a node that is not on a
+/// sweep's stack (the binned builder's nodes below its threshold, built at once).
+pub(super) fn best_split_of_boxes(
+    boxes: &[Aabb],
+    node: &Aabb,
+    axes: Axes,
+    cost: &CostModel,
+) -> Option<Split> {
+    let mut lists: [Vec<Event>; 3] = Default::default();
+    let mut scratch = Vec::new();
+    for (axis, list) in lists.iter_mut().enumerate() {
+        if axes == Axes::All || axis == node.longest_axis() {
+            list.reserve(2 * boxes.len());
+            for (i, b) in boxes.iter().enumerate() {
+                events::push_box(list, axis, b, i as u32);
+            }
+            events::sort_prim_ordered(list, &mut scratch);
+        }
+    }
+    let events = [&lists[0][..], &lists[1][..], &lists[2][..]];
+    best_split(events, node, boxes.len() as u32, axes, cost)
 }
 
 /// Sweeps one axis, with the axis a constant so that the cost's index arithmetic folds.
