@@ -137,9 +137,10 @@ def main():
                     else f"sweep ({axes})"
                 new = next(r for b, t, r in rows if b == mine)
                 old = next(r for b, t, r in rows if b == f"sweep ({axes}), baseline binary")
-                # The SAH cost is summed in the report's own order: equal to rounding.
+                # The SAH cost is summed in each report's own order: equal to rounding (dragon_res2
+                # at K_T 15: 1315.40989 both ways, 2.6e-8 apart).
                 same = (new["nodes"], new["refs"]) == (old["nodes"], old["refs"]) and \
-                    abs(new["sah"] - old["sah"]) <= 1e-8 * new["sah"]
+                    abs(new["sah"] - old["sah"]) <= 1e-7 * new["sah"]
                 notes.append(f"{name} sweep ({axes}): baseline / this = {old['ms'][0] / new['ms'][0]:.2f}x, "
                              f"{'same' if same else 'DIFFERENT'} tree")
         notes.append(f"{name}: load average {before} before, {load()} after")
