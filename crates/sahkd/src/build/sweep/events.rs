@@ -30,6 +30,21 @@ pub(super) fn push_box(out: &mut Vec<Event>, axis: usize, b: &Aabb, prim: u32) {
     }
 }
 
+/// `list` made the events of `boxes` on `axis` (primitive `i` is `boxes[i]`), sorted;
+/// `scratch` is the sort's spare buffer.
+pub(super) fn sorted_of_boxes(
+    list: &mut Vec<Event>,
+    axis: usize,
+    boxes: &[Aabb],
+    scratch: &mut Vec<Event>,
+) {
+    list.reserve(boxes.len() * 2);
+    for (i, b) in boxes.iter().enumerate() {
+        push_box(list, axis, b, i as u32);
+    }
+    sort_prim_ordered(list, scratch);
+}
+
 /// Appends to `out` the merge of the sorted lists `a` and `b` (usually a few re-clipped
 /// primitives). When `b` is short, runs of `a` are found by binary search and copied whole,
 /// so the cost is a memcpy of `a` plus `O(|b| log |a|)`; otherwise a plain merge.

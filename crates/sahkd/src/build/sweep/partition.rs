@@ -53,11 +53,7 @@ impl Workspace {
         let mut arena: [Vec<Event>; 3] = Default::default();
         let mut scratch = Vec::new();
         for (axis, list) in arena.iter_mut().enumerate() {
-            list.reserve(boxes.len() * 2);
-            for (i, b) in boxes.iter().enumerate() {
-                events::push_box(list, axis, b, i as u32);
-            }
-            events::sort_prim_ordered(list, &mut scratch);
+            events::sorted_of_boxes(list, axis, boxes, &mut scratch);
         }
         let mut work = Workspace::from_sorted(arena, boxes.len());
         work.tmp_left = scratch;

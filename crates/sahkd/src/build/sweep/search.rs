@@ -81,11 +81,7 @@ pub(super) fn best_split_of_boxes(
     let mut scratch = Vec::new();
     for (axis, list) in lists.iter_mut().enumerate() {
         if axes == Axes::All || axis == node.longest_axis() {
-            list.reserve(2 * boxes.len());
-            for (i, b) in boxes.iter().enumerate() {
-                events::push_box(list, axis, b, i as u32);
-            }
-            events::sort_prim_ordered(list, &mut scratch);
+            events::sorted_of_boxes(list, axis, boxes, &mut scratch);
         }
     }
     let events = [&lists[0][..], &lists[1][..], &lists[2][..]];
