@@ -12,8 +12,8 @@ scripts/embree_build.py in the same run (needs embreex in the interpreter runnin
 under `taskset -c 0` for one thread. `--baseline` adds the serial sweep of another sahkd
 binary (e.g. one built at an older commit), to compare sweeps at identical trees: its rows
 must give the same nodes, references and SAH cost; `--baseline-kt 15` times this binary's sweep
-again at the baseline's K_T (15 before session 13) for that comparison. Prints one markdown table with medians
-and min-max, and the load average before and after each mesh.
+again at the baseline's K_T (15 before session 13) for that comparison. Prints one markdown
+table with medians and min-max, and the load average before and after each mesh.
 """
 
 import argparse
