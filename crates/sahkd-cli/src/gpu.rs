@@ -39,7 +39,7 @@ pub fn build(mesh: &Mesh, options: &BuildOptions) -> Result<(Build, GpuReport)> 
     use anyhow::anyhow;
     check(options)?;
     mesh.validate()
-        .map_err(|e| anyhow!(sahkd::build::BuildError::InvalidMesh(e)))?;
+        .map_err(|e| anyhow!(sahkd::builders::BuildError::InvalidMesh(e)))?;
     let gpu = sahkd_gpu::Gpu::new().map_err(|e| anyhow!(e))?;
     let built = sahkd_gpu::build(&gpu, mesh.corner_triangles(), options)
         .map_err(|e| anyhow!("GPU build failed on {}: {e}", gpu.describe()))?;

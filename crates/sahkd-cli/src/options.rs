@@ -219,7 +219,7 @@ impl Builder {
         let triangles = mesh
             .validate()
             .map(|()| mesh.corner_triangles())
-            .map_err(sahkd::build::BuildError::InvalidMesh)
+            .map_err(sahkd::builders::BuildError::InvalidMesh)
             .context("cannot build the tree")?;
         drop(mesh);
         let options = BuildOptions {
@@ -408,7 +408,7 @@ fn parse_bins(s: &str) -> Result<u32, String> {
     };
     match options.validate() {
         Ok(()) => Ok(bins),
-        Err(sahkd::build::BuildError::InvalidOptions(m)) => Err(m),
+        Err(sahkd::builders::BuildError::InvalidOptions(m)) => Err(m),
         Err(e) => Err(e.to_string()),
     }
 }

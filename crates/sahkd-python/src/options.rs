@@ -127,7 +127,7 @@ pub fn build_options(
     }
     // The library's own rules (bins' range, and which builders take bins), named as it names them.
     o.validate().map_err(|e| match e {
-        sahkd::build::BuildError::InvalidOptions(m) => PyValueError::new_err(m),
+        sahkd::builders::BuildError::InvalidOptions(m) => PyValueError::new_err(m),
         e => PyValueError::new_err(e.to_string()),
     })?;
     Ok(o)

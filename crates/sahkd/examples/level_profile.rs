@@ -113,7 +113,7 @@ fn run() -> Result<(), String> {
         h.finish()
     };
     println!("tree digest {digest:016x}");
-    let sum = |f: &dyn Fn(&sahkd::build::LevelReport) -> f64| -> f64 {
+    let sum = |f: &dyn Fn(&sahkd::builders::LevelReport) -> f64| -> f64 {
         b.report.levels.iter().map(f).sum()
     };
     println!(

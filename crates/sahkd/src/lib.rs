@@ -16,7 +16,7 @@
 //! tree.validate().unwrap();
 //! ```
 
-pub mod build;
+pub mod builders;
 pub mod clip;
 pub mod cost;
 pub mod geometry;
@@ -30,7 +30,7 @@ pub mod threads;
 pub mod trace;
 pub mod tree;
 
-pub use build::{
+pub use builders::{
     build, build_triangles, Algorithm, Axes, Build, BuildOptions, BuildReport, Counting,
     BINNED_REFS_PER_BIN, HYBRID_BINS, MAX_BINS,
 };

@@ -68,7 +68,7 @@
 //! [`SceneTree::signed_distance`] is the distance to the nearest surface of any geometry,
 //! negative inside any geometry.
 
-use crate::build::{build_triangles, BuildError, BuildOptions, BuildReport};
+use crate::builders::{build_triangles, BuildError, BuildOptions, BuildReport};
 use crate::geometry::{Triangle, Vec3};
 use crate::mesh::{Mesh, MeshError};
 use crate::query::{winding_number, ClosestPoint, InsideTest, PARITY_DIRECTIONS};

@@ -110,7 +110,7 @@ fn binned_trees_are_the_same_on_any_thread_count() {
 }
 
 /// Below the threshold a parallel build splits the biggest nodes by the sweep's own search and
-/// builds their children at once (`FORK_SHARE` in `build/sweep/binned.rs`; every node here
+/// builds their children at once (`FORK_SHARE` in `builders/sweep/binned.rs`; every node here
 /// over 1024 triangles at 2 or 3 threads): the tree is still the one-thread exact sweep's.
 #[test]
 fn nodes_split_at_once_below_the_threshold_give_the_sweeps_tree() {

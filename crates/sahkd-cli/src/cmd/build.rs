@@ -13,7 +13,7 @@ use crate::output;
 use crate::progress::Progress;
 use crate::resident::PeakResident;
 use anyhow::{bail, Context as _, Result};
-use sahkd::build::LevelReport;
+use sahkd::builders::LevelReport;
 use sahkd::{Axes, TreeMeta, BINNED_REFS_PER_BIN};
 use serde::Serialize;
 use std::path::PathBuf;

@@ -13,7 +13,7 @@ use crate::progress::Progress;
 use anyhow::Result;
 use npyz::npz::NpzWriter;
 use npyz::WriterBuilder;
-use sahkd::build::BuildReport;
+use sahkd::builders::BuildReport;
 use sahkd::Build;
 use std::path::Path;
 use std::time::Instant;

@@ -6,7 +6,7 @@ use super::{Builder, Params};
 use crate::price::Layout;
 use crate::space_tree;
 use crate::GpuError;
-use sahkd::build::Counting;
+use sahkd::builders::Counting;
 
 impl Builder<'_> {
     /// Sizes the candidate arrays for `layout` (an upper bound of the candidates).

@@ -7,7 +7,7 @@ use super::buffers::ListHandles;
 use super::{Builder, Params};
 use crate::price::{DeviceLayout, Layout};
 use crate::GpuError;
-use sahkd::build::Axes;
+use sahkd::builders::Axes;
 
 /// Byte offsets of `cands`, `first1`, `first2` in the level's `Params`.
 pub(super) const PARAMS_LAYOUT: [Option<u64>; 3] = [Some(36), Some(40), Some(44)];

@@ -34,7 +34,7 @@ use crate::{Gpu, GpuError};
 use buffers::{LevelBuffers, Lists};
 use kernels::Kernels;
 pub use presort::Presort;
-use sahkd::build::{Algorithm, Axes, BuildOptions};
+use sahkd::builders::{Algorithm, Axes, BuildOptions};
 use sahkd::geometry::triangle_bounds;
 use sahkd::{Aabb, KdTree, Node, Triangle};
 use std::time::Instant;

@@ -98,7 +98,7 @@ fn gpu() -> Option<crate::Gpu> {
 /// still the CPU level builder's.
 #[test]
 fn arrays_larger_than_one_binding_give_the_cpu_tree() {
-    use sahkd::build::{Algorithm, Axes, BuildOptions, Counting};
+    use sahkd::builders::{Algorithm, Axes, BuildOptions, Counting};
     let Some(mut gpu) = gpu() else { return };
     let limit = 128 * 1024;
     gpu.limit_binding(limit);
@@ -149,7 +149,7 @@ fn device_presort_equals_the_hosts() {
     use super::buffers::Grow;
     use super::kernels::Kernels;
     use super::presort;
-    use sahkd::build::{Algorithm, BuildOptions};
+    use sahkd::builders::{Algorithm, BuildOptions};
     use sahkd::{Aabb, Vec3};
     let Some(gpu) = gpu() else { return };
     // Few distinct values: ties everywhere, -0 and +0 both, many flat boxes.

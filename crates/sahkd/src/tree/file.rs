@@ -34,7 +34,7 @@
 //! opening stays linear; [`KdTree::validate`] checks it all.
 
 use super::{validate, KdTree, Node};
-use crate::build::BuildOptions;
+use crate::builders::BuildOptions;
 use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::{Aabb, Triangle, Vec3};
 use serde_json::{json, Value};

@@ -20,8 +20,8 @@ use super::candidates::{self, Candidate, Candidates, Counts};
 use super::entries::{Event, END, PLANAR, START};
 use super::segments::CHUNK;
 use super::{ms_since, Level};
-use crate::build::choice::Ranked;
-use crate::build::LevelReport;
+use crate::builders::choice::Ranked;
+use crate::builders::LevelReport;
 use crate::cost::{CostModel, SplitPricer};
 use crate::geometry::Aabb;
 use rayon::prelude::*;
@@ -213,7 +213,7 @@ fn sweep_chunks(events: &[Event], node: &Node) -> Found {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::level::entries::ListEntry;
+    use crate::builders::level::entries::ListEntry;
     use crate::geometry::Vec3;
 
     /// The chunked sweep of a large node finds the same best candidate (and count) as the

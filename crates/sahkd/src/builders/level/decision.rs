@@ -4,7 +4,7 @@
 use super::candidates::{Candidate, Candidates};
 use super::entries::ListEntry;
 use super::{Context, Level};
-use crate::build::choice::Ranked;
+use crate::builders::choice::Ranked;
 use rayon::prelude::*;
 
 /// The split chosen for a node.

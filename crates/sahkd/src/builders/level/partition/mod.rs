@@ -32,7 +32,7 @@ use super::decision::Split;
 use super::entries::ListEntry;
 use super::segments::{filled, Scatter};
 use super::{Context, Level};
-use crate::build::BuiltTree;
+use crate::builders::BuiltTree;
 use crate::geometry::Aabb;
 use lists::partition_lists;
 use output::write_nodes_and_leaves;

@@ -2,11 +2,11 @@
 //! references, placed by one scan over the nodes.
 
 use super::{Work, NONE};
-use crate::build::level::decision::Split;
-use crate::build::level::entries::ListEntry;
-use crate::build::level::segments::{filled, Prefix, Scatter, Tally};
-use crate::build::level::Level;
-use crate::build::BuiltTree;
+use crate::builders::level::decision::Split;
+use crate::builders::level::entries::ListEntry;
+use crate::builders::level::segments::{filled, Prefix, Scatter, Tally};
+use crate::builders::level::Level;
+use crate::builders::BuiltTree;
 use crate::tree::Node;
 
 /// Children and leaf references before a node: the scan that places the level's output.

@@ -26,7 +26,7 @@
 //! Output nodes are written breadth first: a level's nodes are contiguous, and the children of
 //! its split nodes follow it, side by side, in the order of their parents.
 //!
-//! Counts follow the shared semantics of `build/mod.rs`: L = #(lo < p), R = #(hi > p),
+//! Counts follow the shared semantics of `builders/mod.rs`: L = #(lo < p), R = #(hi > p),
 //! P = #(lo == p == hi). With clipping off a reference's box is its triangle's box, not
 //! clamped to the node: for a plane strictly inside the node the counts, the candidates and
 //! the partition come out exactly as with the clamped box, and the lists never need re-sorting.

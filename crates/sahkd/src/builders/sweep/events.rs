@@ -1,8 +1,8 @@
-//! The sweep's event lists: events in the shared encoding of [`crate::build::event`] (id =
+//! The sweep's event lists: events in the shared encoding of [`crate::builders::event`] (id =
 //! the primitive's index in the sweep's numbering), made, merged and sorted.
 
-pub(super) use crate::build::event::{kind, plane_bits, pos_bits, END, PLANAR, START};
-use crate::build::event::{pack, ID_BITS};
+pub(super) use crate::builders::event::{kind, plane_bits, pos_bits, END, PLANAR, START};
+use crate::builders::event::{pack, ID_BITS};
 use crate::geometry::Aabb;
 
 pub(crate) type Event = u64;
@@ -14,7 +14,7 @@ pub(super) fn event(pos: f32, kind: u32, prim: u32) -> Event {
 
 #[inline(always)]
 pub(super) fn prim(e: Event) -> usize {
-    crate::build::event::id(e) as usize
+    crate::builders::event::id(e) as usize
 }
 
 /// Appends the events of `prim`'s box on `axis`: one planar event for a flat box, else a

@@ -18,9 +18,9 @@
 
 use super::search::{best_split_of_boxes, priced, Split};
 use super::{build_subtree, Subtree};
-use crate::build::options::BINNED_REFS_PER_BIN;
-use crate::build::stitch::{self, Piece};
-use crate::build::{Axes, BuildOptions, BuiltTree, Primitives};
+use crate::builders::options::BINNED_REFS_PER_BIN;
+use crate::builders::stitch::{self, Piece};
+use crate::builders::{Axes, BuildOptions, BuiltTree, Primitives};
 use crate::clip::clipped_bounds;
 use crate::cost::CostModel;
 use crate::geometry::{Aabb, Triangle};

@@ -4,12 +4,12 @@
 
 use super::lists::PARALLEL_SPLIT;
 use super::{Clipped, Work, NONE};
-use crate::build::level::decision::Split;
-use crate::build::level::entries::ListEntry;
-use crate::build::level::segments::{
+use crate::builders::level::decision::Split;
+use crate::builders::level::entries::ListEntry;
+use crate::builders::level::segments::{
     carries, filled, par_chunks, Cursor, Prefix, Scatter, Tally, CHUNK,
 };
-use crate::build::level::{Context, Level};
+use crate::builders::level::{Context, Level};
 use crate::clip::clipped_bounds;
 use crate::geometry::Aabb;
 use rayon::prelude::*;

@@ -6,9 +6,9 @@
 //! at or before `p`. The planars at `p` are `P`.
 
 use super::events::{self, kind, plane_bits, pos_bits, Event, END, PLANAR};
-use crate::build::choice::Ranked;
-use crate::build::event::unordered;
-use crate::build::Axes;
+use crate::builders::choice::Ranked;
+use crate::builders::event::unordered;
+use crate::builders::Axes;
 use crate::cost::{CostModel, SplitPricer};
 use crate::geometry::Aabb;
 

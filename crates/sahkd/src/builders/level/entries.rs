@@ -6,8 +6,8 @@
 //! partition can look up where the reference goes. Slots keep the primitives' relative order
 //! (every partition is stable), so ordering ties by slot is ordering them by primitive index.
 
-use crate::build::event;
-pub(super) use crate::build::event::{ordered, END, PLANAR, START};
+use crate::builders::event;
+pub(super) use crate::builders::event::{ordered, END, PLANAR, START};
 
 /// Bits of a slot: the shared event encoding's id bits.
 pub(super) const SLOT_BITS: u32 = event::ID_BITS;
@@ -79,7 +79,7 @@ impl ListEntry for Span {
     }
 }
 
-/// A split event in the shared encoding ([`crate::build::event`]), its id the reference's
+/// A split event in the shared encoding ([`crate::builders::event`]), its id the reference's
 /// level slot.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(super) struct Event(pub u64);

@@ -3,10 +3,10 @@
 //! own and merged in.
 
 use super::{Clipped, Work, NONE};
-use crate::build::level::decision::Split;
-use crate::build::level::entries::ListEntry;
-use crate::build::level::segments::{Scatter, CHUNK};
-use crate::build::level::Level;
+use crate::builders::level::decision::Split;
+use crate::builders::level::entries::ListEntry;
+use crate::builders::level::segments::{Scatter, CHUNK};
+use crate::builders::level::Level;
 use rayon::prelude::*;
 
 /// List segments from this size on are partitioned in parallel chunks.
@@ -229,7 +229,7 @@ fn split_chunks<E: ListEntry>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::level::entries::Event;
+    use crate::builders::level::entries::Event;
 
     struct Lcg(u64);
     impl Lcg {

@@ -12,7 +12,7 @@ use super::entries::ListEntry;
 use super::partition::flat_mask;
 use super::segments::{filled, Prefix, Scatter, Tally};
 use super::Level;
-use crate::build::Primitives;
+use crate::builders::Primitives;
 use rayon::prelude::*;
 
 /// The root level: one node over the scene box holding every primitive, slot = primitive
@@ -119,7 +119,7 @@ fn radix_sort<E: ListEntry>(v: &mut Vec<E>, low: u32) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::level::entries::{Event, Span, SLOT_BITS};
+    use crate::builders::level::entries::{Event, Span, SLOT_BITS};
 
     #[test]
     fn radix_sort_equals_comparison_sort() {
