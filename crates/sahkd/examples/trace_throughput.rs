@@ -21,7 +21,7 @@
 //! with nodes visited, leaves entered and triangles tested per ray from one counting pass.
 //! `--sets` times only the sets named, `--no-count` skips the counting pass (both for
 //! profiling one set's batch calls, e.g. under callgrind).
-//! `--dump DIR` writes the triangles, every set and sahkd's answers as `.npy` files for
+//! `--dump DIR` writes the mesh (vertices and faces), its triangles, every set and sahkd's answers as `.npy` files for
 //! `scripts/embree_throughput.py`, which traces the very same rays with Embree.
 
 use sahkd::render::{Camera, Query, RaySet, RaySets};
@@ -116,9 +116,20 @@ fn throughput(rays: usize, repeat: usize, mut f: impl FnMut()) -> (f64, f64, f64
 
 /// A little-endian float32 `.npy` file of the given shape.
 fn write_npy(path: &Path, shape: &[usize], data: &[f32]) -> std::io::Result<()> {
+    let bytes: Vec<[u8; 4]> = data.iter().map(|x| x.to_le_bytes()).collect();
+    write_npy_words(path, "<f4", shape, &bytes)
+}
+
+/// A `.npy` file of 4-byte little-endian items of type `descr` (`<f4`, `<i4`).
+fn write_npy_words(
+    path: &Path,
+    descr: &str,
+    shape: &[usize],
+    data: &[[u8; 4]],
+) -> std::io::Result<()> {
     let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
     let mut header = format!(
-        "{{'descr': '<f4', 'fortran_order': False, 'shape': ({},), }}",
+        "{{'descr': '{descr}', 'fortran_order': False, 'shape': ({},), }}",
         dims.join(", ")
     );
     while (10 + header.len() + 1) % 64 != 0 {
@@ -130,7 +141,7 @@ fn write_npy(path: &Path, shape: &[usize], data: &[f32]) -> std::io::Result<()> 
     file.write_all(&(header.len() as u16).to_le_bytes())?;
     file.write_all(header.as_bytes())?;
     for x in data {
-        file.write_all(&x.to_le_bytes())?;
+        file.write_all(x)?;
     }
     file.flush()
 }
@@ -166,11 +177,36 @@ fn answers(tree: &KdTree, set: &RaySet) -> (Vec<f32>, usize, usize) {
     }
 }
 
-/// Writes the triangles, and per set `NAME.npy` (rays) and `NAME_answers.npy`, and
-/// `sets.txt` (one line `NAME closest|any` per set) for `scripts/embree_throughput.py`.
-fn dump(dir: &str, tree: &KdTree, sets: &[RaySet]) -> std::io::Result<()> {
+/// Writes the mesh (`vertices.npy`, float32 rows x y z, and `faces.npy`, int32 rows of corner
+/// indices: face `i` is the tree's triangle `i`), the triangles' corners, and per set
+/// `NAME.npy` (rays) and `NAME_answers.npy`, and `sets.txt` (one line `NAME closest|any` per
+/// set) for `scripts/embree_throughput.py`, which loads Embree from the indexed mesh as its
+/// users do.
+fn dump(dir: &str, mesh: &Mesh, tree: &KdTree, sets: &[RaySet]) -> std::io::Result<()> {
     let dir = Path::new(dir);
     std::fs::create_dir_all(dir)?;
+    let vertices: Vec<[u8; 4]> = mesh
+        .vertices
+        .iter()
+        .flat_map(|v| v.map(f32::to_le_bytes))
+        .collect();
+    write_npy_words(
+        &dir.join("vertices.npy"),
+        "<f4",
+        &[mesh.vertices.len(), 3],
+        &vertices,
+    )?;
+    let faces: Vec<[u8; 4]> = mesh
+        .triangles
+        .iter()
+        .flat_map(|f| f.map(|i| (i as i32).to_le_bytes()))
+        .collect();
+    write_npy_words(
+        &dir.join("faces.npy"),
+        "<i4",
+        &[mesh.triangles.len(), 3],
+        &faces,
+    )?;
     let corners: Vec<f32> = tree
         .triangles()
         .iter()
@@ -224,7 +260,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..
     } = RaySets::new(&tree, camera, n, n);
     if let Some(dir) = &args.dump {
-        dump(dir, &tree, &sets)?;
+        dump(dir, &mesh, &tree, &sets)?;
     }
 
     println!(
