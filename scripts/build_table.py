@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The build-time table of BENCHMARKS.md (issue 13): sahkd's builders against Embree 4's BVH
+"""The build-time table of BENCHMARKS.md: sahkd's builders against Embree 4's BVH
 build on the same meshes, 1 and 2 threads, in one run.
 
     cargo build --release -p sahkd-cli
@@ -8,11 +8,12 @@ build on the same meshes, 1 and 2 threads, in one run.
 MESH is a name in ../shared/scenes (or $SAHKD_SCENES); default bunny, dragon_res2 and dragon.
 Every configuration is one warm-up build and `--repeat` timed builds of `sahkd build --json`
 (`build_ms`); one thread means `taskset -c 0` and `--threads 1`. Embree is timed by
-scripts/embree_build.py in the same run (needs embreex in the interpreter running this),
+scripts/embree_build.py in the same run, from the indexed mesh (needs embreex and trimesh
+in the interpreter running this),
 under `taskset -c 0` for one thread. `--baseline` adds the serial sweep of another sahkd
 binary (e.g. one built at an older commit), to compare sweeps at identical trees: its rows
 must give the same nodes, references and SAH cost; `--baseline-kt 15` times this binary's sweep
-again at the baseline's K_T (15 before session 13) for that comparison. Prints one markdown
+again at the baseline's K_T for that comparison. Prints one markdown
 table with medians and min-max, and the load average before and after each mesh.
 """
 
