@@ -4,12 +4,13 @@
 //! traversal, so a tree that loses, misplaces or mis-orders a triangle shows up as a
 //! disagreement with it.
 
-use super::{finish_hit, Hit, Ray, ShearedRay};
+use super::{finish_hit, Closest, Hit, Ray, ShearedRay};
 use crate::geometry::{scene_scale, triangle_bounds, Aabb, Triangle};
 use crate::tree::layout::reach_of;
 
-/// The scale the tree of these triangles is traced at, the ray scaled by it, and the test.
-fn prepare(triangles: &[Triangle], ray: &Ray) -> Option<(f32, ShearedRay, Ray)> {
+/// The scale the tree of these triangles is traced at, the largest extent of the scaled
+/// scene, the test and the ray scaled.
+fn prepare(triangles: &[Triangle], ray: &Ray) -> Option<(f32, f32, ShearedRay, Ray)> {
     if !ray.is_valid() {
         return None;
     }
@@ -22,13 +23,13 @@ fn prepare(triangles: &[Triangle], ray: &Ray) -> Option<(f32, ShearedRay, Ray)> 
     scaled
         .origin
         .is_finite()
-        .then(|| (scale, ShearedRay::with_reach(&scaled, reach), scaled))
+        .then(|| (scale, reach, ShearedRay::with_reach(&scaled, reach), scaled))
 }
 
 /// Calls `f` with the hit of every triangle hit in `[ray.t_min, ray.t_max]`, in triangle
 /// order, each as [`KdTree::for_each_hit`](crate::KdTree::for_each_hit) reports it.
 pub fn for_each_hit(triangles: &[Triangle], ray: &Ray, mut f: impl FnMut(Hit)) {
-    let Some((scale, sheared, scaled)) = prepare(triangles, ray) else {
+    let Some((scale, _, sheared, scaled)) = prepare(triangles, ray) else {
         return;
     };
     for (i, tri) in triangles.iter().enumerate() {
@@ -44,32 +45,30 @@ pub fn for_each_hit(triangles: &[Triangle], ray: &Ray, mut f: impl FnMut(Hit)) {
     }
 }
 
-/// The closest hit over all triangles (ties go to the lower triangle index).
+/// The closest hit over all triangles, by [`closer`](super::closer) on the reported hits
+/// (ties go to the lower triangle index).
 pub fn intersect(triangles: &[Triangle], ray: &Ray) -> Option<Hit> {
-    let (scale, sheared, scaled) = prepare(triangles, ray)?;
-    let mut best: Option<Hit> = None;
-    let mut best_t = scaled.t_max;
+    let (scale, reach, sheared, scaled) = prepare(triangles, ray)?;
+    let mut closest = Closest::new(triangles, ray, scale, reach);
+    let mut limit = scaled.t_max;
     for (i, tri) in triangles.iter().enumerate() {
         let tri = tri.map(|v| v * scale);
-        if let Some(h) = sheared.intersect(&tri, scaled.t_min, best_t) {
+        if let Some(h) = sheared.intersect(&tri, scaled.t_min, limit) {
             let hit = Hit {
                 t: h.t,
                 prim: i as u32,
                 u: h.u,
                 v: h.v,
             };
-            if hit.better_than(&best) {
-                best_t = hit.t;
-                best = Some(hit);
-            }
+            closest.offer(hit, &mut limit);
         }
     }
-    best.map(|h| finish_hit(&triangles[h.prim as usize], ray, h, 1.0 / scale))
+    closest.best()
 }
 
 /// Whether any triangle is hit.
 pub fn occluded(triangles: &[Triangle], ray: &Ray) -> bool {
-    let Some((scale, sheared, scaled)) = prepare(triangles, ray) else {
+    let Some((scale, _, sheared, scaled)) = prepare(triangles, ray) else {
         return false;
     };
     triangles.iter().any(|t| {

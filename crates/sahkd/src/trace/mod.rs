@@ -10,6 +10,14 @@
 //! serves closest hit, any hit and all hits; it runs over the tree's `layout` copy, made on
 //! the first query: nodes depth first, leaves' triangles stored in leaf order. The batch calls
 //! walk neighbouring rays four at a time (`packet`), with the same answers.
+//!
+//! Ties: the closest hit is the least (reported `t`, triangle index) of all the ray's hits,
+//! so two triangles at one distance (coplanar ones, or neighbours sharing the edge the ray
+//! crosses) give the lower index, whatever leaf or order they are found in. Every
+//! closest-hit query, float32 or f64, one ray or a batch, tree or brute force, compares by
+//! [`closer`] alone. The float32 walk compares the reported (f64 plane) distance, not its
+//! own float32 one, and keeps looking a little beyond its best hit (`Closest`), since a
+//! tied triangle may sit in a later leaf.
 
 pub mod brute;
 mod packet;
@@ -169,15 +177,83 @@ pub struct Hit {
     pub v: f32,
 }
 
-impl Hit {
-    /// The order of hits: nearer first, then the lower triangle index, so that the result of
-    /// a query does not depend on the order triangles are tested in.
+/// The order of closest hits, the one rule every closest-hit query follows (the float32 and
+/// f64 walks, one ray or a batch, the scene's tree and the brute force): nearer first, then
+/// the lower triangle index. `t` is the distance the query reports.
+#[inline(always)]
+pub fn closer<T: PartialOrd>(t: T, prim: u32, best: Option<(T, u32)>) -> bool {
+    match best {
+        None => true,
+        Some((best_t, best_prim)) => t < best_t || (t == best_t && prim < best_prim),
+    }
+}
+
+/// How far beyond a hit (relative to its distance plus the ray's crossing of the scene) the
+/// float32 walk keeps looking for another hit at the same reported distance: those differ
+/// from the reported one by a few float32 roundings (`2^-22` or so), so this leaves a wide
+/// margin and costs a walk almost nothing beyond the hit.
+const TIE_SLACK: f32 = 1.0 / 65536.0;
+
+/// The closest hit of one ray so far in a float32 walk, by [`closer`] on the reported hit.
+///
+/// The walk finds hits by their float32 distance in the scaled scene, but a query reports the
+/// f64 plane distance (`finish_hit`), and two triangles at one reported distance (coplanar
+/// ones, or neighbours sharing the edge the ray crosses) can come out of the float32 test a
+/// rounding apart, in either order. So every hit is finished before it is compared, and the
+/// walk's limit is set a little beyond the best hit (`TIE_SLACK`), not at it: a triangle at
+/// the same reported distance in a later leaf or later in the leaf is still tested.
+pub(crate) struct Closest<'a> {
+    triangles: &'a [Triangle],
+    ray: &'a Ray,
+    /// The walk's scale and its inverse (distances in the walk are `scale` times the ray's).
+    scale: f32,
+    inv_scale: f32,
+    /// The walk's distance for crossing the scene, in scaled units.
+    cross: f32,
+    /// The ray's `t_max` in the walk's units.
+    t_max: f32,
+    best: Option<Hit>,
+}
+
+impl<'a> Closest<'a> {
+    /// For `ray` in a walk at `scale` over `triangles` (the caller's), whose scaled bounds
+    /// have the largest extent `reach`.
     #[inline(always)]
-    fn better_than(&self, other: &Option<Hit>) -> bool {
-        match other {
-            None => true,
-            Some(o) => self.t < o.t || (self.t == o.t && self.prim < o.prim),
+    pub(crate) fn new(triangles: &'a [Triangle], ray: &'a Ray, scale: f32, reach: f32) -> Self {
+        let d = ray.direction;
+        let longest = d[0].abs().max(d[1].abs()).max(d[2].abs());
+        Closest {
+            triangles,
+            ray,
+            scale,
+            inv_scale: 1.0 / scale,
+            cross: reach / longest,
+            t_max: ray.t_max * scale,
+            best: None,
         }
+    }
+
+    /// Offers a hit of the walk (its `t` in the walk's units); when it comes first, keeps it
+    /// and sets `limit` just beyond it.
+    #[inline(always)]
+    pub(crate) fn offer(&mut self, hit: Hit, limit: &mut f32) {
+        let hit = finish_hit(
+            &self.triangles[hit.prim as usize],
+            self.ray,
+            hit,
+            self.inv_scale,
+        );
+        if closer(hit.t, hit.prim, self.best.map(|b| (b.t, b.prim))) {
+            let t = hit.t * self.scale;
+            *limit = (t + (t.abs() + self.cross) * TIE_SLACK).min(self.t_max);
+            self.best = Some(hit);
+        }
+    }
+
+    /// The closest hit, as the query reports it.
+    #[inline(always)]
+    pub(crate) fn best(&self) -> Option<Hit> {
+        self.best
     }
 }
 
@@ -352,15 +428,19 @@ impl KdTree {
 
     #[inline(always)]
     fn closest(&self, ray: &Ray, counters: &mut impl TraceCounters) -> Option<Hit> {
-        let mut best: Option<Hit> = None;
+        let mut closest = self.closest_of(ray);
         self.walk(ray, counters, |hit, limit| {
-            if hit.better_than(&best) {
-                *limit = hit.t;
-                best = Some(hit);
-            }
+            closest.offer(hit, limit);
             false
         });
-        best.map(|h| self.finish(ray, h))
+        closest.best()
+    }
+
+    /// The search for the closest hit of `ray` in this tree's walk.
+    #[inline(always)]
+    fn closest_of<'a>(&'a self, ray: &'a Ray) -> Closest<'a> {
+        let layout = self.trace_layout();
+        Closest::new(&self.triangles, ray, layout.scale, layout.reach)
     }
 
     /// A hit of the walk (its `t` in the layout's scaled units) as the query reports it.

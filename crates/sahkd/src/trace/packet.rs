@@ -21,7 +21,7 @@
 //! occlusion, bounces) would otherwise rarely fill a packet of one octant. What is left of an
 //! octant's run after its packets is traced one ray at a time.
 
-use super::{clip_to_box, visit_leaf, Hit, Ray, ShearedRay};
+use super::{clip_to_box, visit_leaf, Closest, Hit, Ray, ShearedRay};
 use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::Vec3;
 use crate::tree::KdTree;
@@ -292,15 +292,13 @@ impl KdTree {
             rays,
             out,
             |packet| {
-                let mut best: [Option<Hit>; WIDTH] = [None; WIDTH];
+                let mut closest: [Closest; WIDTH] =
+                    std::array::from_fn(|i| self.closest_of(&packet[i]));
                 self.walk_packet(packet, |i, hit, limit| {
-                    if hit.better_than(&best[i]) {
-                        *limit = hit.t;
-                        best[i] = Some(hit);
-                    }
+                    closest[i].offer(hit, limit);
                     false
                 });
-                std::array::from_fn(|i| best[i].map(|h| self.finish(&packet[i], h)))
+                std::array::from_fn(|i| closest[i].best())
             },
             |ray| self.intersect(ray),
         );

@@ -73,12 +73,9 @@ pub struct Hit64 {
 }
 
 impl Hit64 {
-    /// Nearer first, then the lower triangle index (the float32 queries' order).
+    /// [`closer`](super::closer), the float32 queries' order: the walk's `t` is the reported one.
     fn better_than(&self, other: &Option<Hit64>) -> bool {
-        match other {
-            None => true,
-            Some(o) => self.t < o.t || (self.t == o.t && self.prim < o.prim),
-        }
+        super::closer(self.t, self.prim, other.map(|o| (o.t, o.prim)))
     }
 }
 
