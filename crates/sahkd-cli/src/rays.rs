@@ -9,22 +9,29 @@ use std::io::{BufRead, BufReader};
 use std::path::Path;
 
 /// Reads an (R, 6) or (R, 8) float32 array. Rows of 6 get the range [0, inf).
+/// A ray the library's input rule refuses (`RayPart::problem`) is an error naming its row.
 pub fn read(path: &Path) -> Result<Vec<Ray>> {
     let rows = read_rows(path, &[6, 8], "(R, 6) or (R, 8)", "rays")?;
-    Ok((0..rows.rows)
+    (0..rows.rows)
         .map(|r| {
             let at = |col| rows.at(r, col);
             let ray = Ray::new(
                 Vec3::new(at(0), at(1), at(2)),
                 Vec3::new(at(3), at(4), at(5)),
             );
-            if rows.width == 8 {
+            let ray = if rows.width == 8 {
                 ray.with_range(at(6), at(7))
             } else {
                 ray
+            };
+            match ray.input_problem() {
+                Some((part, why)) => {
+                    bail!("{}: ray {r}: its {} is {why}", path.display(), part.name())
+                }
+                None => Ok(ray),
             }
         })
-        .collect())
+        .collect()
 }
 
 /// Reads query points: an (N, 3) float32 array.

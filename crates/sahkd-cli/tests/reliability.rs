@@ -362,3 +362,36 @@ fn the_picture_size_is_checked_before_the_mesh_is_loaded() {
     );
     assert!(!line.contains("missing.ply"), "{line}");
 }
+
+// Rays: the library's one rule for rays given as input ---------------------------------
+
+#[test]
+fn rays_the_library_refuses_are_errors_naming_the_row_and_part() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("hits.npy");
+    let down = [0.0, 0.0, 5.0, 0.0, 0.0, -1.0];
+    for (range, part, why) in [
+        ([0.0, f32::NAN], "t_max", "NaN"),
+        ([f32::NEG_INFINITY, 10.0], "t_min", "not finite"),
+        ([f32::INFINITY, 10.0], "t_min", "not finite"),
+    ] {
+        // The first row is a good ray, the second the bad one.
+        let data = [&down[..], &[0.0, f32::INFINITY], &down, &range].concat();
+        let path = dir.path().join("rays.npy");
+        std::fs::write(&path, npy("(2, 8)", &data)).unwrap();
+        fails(
+            &["trace", "spd:sphere:200", "--rays", s(&path), "-o", s(&out)],
+            1,
+            &["ray 1", &format!("its {part} is {why}")],
+        );
+        assert!(!out.exists(), "no output for refused rays");
+    }
+    // +inf t_max and t_min > t_max are rays, not errors.
+    let path = dir.path().join("open.npy");
+    let mut data = down.to_vec();
+    data.extend([0.0, f32::INFINITY]);
+    data.extend_from_slice(&down);
+    data.extend([3.0, 1.0]);
+    std::fs::write(&path, npy("(2, 8)", &data)).unwrap();
+    succeeds(&["trace", "spd:sphere:200", "--rays", s(&path), "-o", s(&out)]);
+}

@@ -11,7 +11,7 @@ use numpy::prelude::*;
 use numpy::{Element, PyArray1, PyArray2, PyUntypedArray};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use sahkd::{Ray, Ray64, Triangle, Vec3};
+use sahkd::{Ray, Ray64, RayPart, Triangle, Vec3};
 
 /// Any numpy array (array-likes go through `numpy.asarray`), in native byte order and aligned.
 fn ndarray<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Bound<'py, PyUntypedArray>> {
@@ -291,23 +291,12 @@ impl BoundView<'_> {
     }
 }
 
-fn ray_bound<'py>(
-    obj: &Bound<'py, PyAny>,
-    name: &str,
-    rays: usize,
-    allow_inf: bool,
-) -> PyResult<Bound1<'py>> {
-    let ok = |v: f64| {
-        if allow_inf {
-            !v.is_nan()
-        } else {
-            v.is_finite()
-        }
-    };
-    let why = if allow_inf { "NaN" } else { "not finite" };
+fn ray_bound<'py>(obj: &Bound<'py, PyAny>, part: RayPart, rays: usize) -> PyResult<Bound1<'py>> {
+    let name = part.name();
+    let ok = |v: f64| part.problem(v).is_none();
     if obj.cast::<PyUntypedArray>().is_err() {
         if let Ok(v) = obj.extract::<f64>() {
-            if !ok(v) {
+            if let Some(why) = part.problem(v) {
                 return Err(PyValueError::new_err(format!("{name} is {why}")));
             }
             return Ok(Bound1::All(v));
@@ -356,6 +345,7 @@ fn ray_bound<'py>(
         } else {
             format!("[{i}]")
         };
+        let why = part.problem(bound.view().get(i)).unwrap_or("refused");
         return Err(PyValueError::new_err(format!("{name}{at} is {why}")));
     }
     Ok(bound)
@@ -375,8 +365,8 @@ pub fn rays64(
             "origins and directions must have the same number of rays, got {n} and {m}"
         )));
     }
-    let lo = ray_bound(t_min, "t_min", n, false)?;
-    let hi = ray_bound(t_max, "t_max", n, true)?;
+    let lo = ray_bound(t_min, RayPart::TMin, n)?;
+    let hi = ray_bound(t_max, RayPart::TMax, n)?;
     let (lo, hi) = (lo.view(), hi.view());
     let mut rays = Vec::with_capacity(n);
     visit_points_f64(&o, "origins", "float64", |i, p| {
@@ -416,8 +406,8 @@ pub fn ray_input<'py>(
     Ok(RayInput {
         origins,
         directions,
-        t_min: ray_bound(t_min, "t_min", n, false)?,
-        t_max: ray_bound(t_max, "t_max", n, true)?,
+        t_min: ray_bound(t_min, RayPart::TMin, n)?,
+        t_max: ray_bound(t_max, RayPart::TMax, n)?,
         len: n,
     })
 }

@@ -39,5 +39,5 @@ pub use geometry::{Aabb, Triangle, Vec3};
 pub use mesh::{Mesh, MeshError};
 pub use query::{ClosestPoint, InsideTest};
 pub use scene::{Scene, SceneClosestPoint, SceneError, SceneHit, SceneTree, Transform};
-pub use trace::{Hit, Hit64, Ray, Ray64, TraceStats};
+pub use trace::{Hit, Hit64, Ray, Ray64, RayPart, TraceStats};
 pub use tree::{KdTree, LoadError, Node, TreeMeta, TreeStats};

@@ -152,6 +152,21 @@ impl Ray {
             && self.direction != Vec3::splat(0.0)
             && self.t_min <= self.t_max
     }
+    /// The first part of this ray that [`RayPart::problem`] refuses, and why.
+    pub fn input_problem(&self) -> Option<(RayPart, &'static str)> {
+        let coordinates = |part: RayPart, v: &Vec3| {
+            v.0.iter()
+                .find_map(|&c| part.problem(c as f64))
+                .map(|why| (part, why))
+        };
+        coordinates(RayPart::Origin, &self.origin)
+            .or_else(|| coordinates(RayPart::Direction, &self.direction))
+            .or_else(|| {
+                [(RayPart::TMin, self.t_min), (RayPart::TMax, self.t_max)]
+                    .into_iter()
+                    .find_map(|(part, v)| part.problem(v as f64).map(|why| (part, why)))
+            })
+    }
     pub fn at(&self, t: f32) -> Vec3 {
         self.origin + self.direction * t
     }
@@ -164,6 +179,37 @@ impl Ray {
             direction: self.direction,
             t_min: self.t_min * s,
             t_max: self.t_max * s,
+        }
+    }
+}
+
+/// A part of a ray given as input (a file's rows, a caller's arrays).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RayPart {
+    Origin,
+    Direction,
+    TMin,
+    TMax,
+}
+
+impl RayPart {
+    pub fn name(self) -> &'static str {
+        match self {
+            RayPart::Origin => "origin",
+            RayPart::Direction => "direction",
+            RayPart::TMin => "t_min",
+            RayPart::TMax => "t_max",
+        }
+    }
+
+    /// The rule for rays given as input, one for every front end: why `v` (a coordinate of
+    /// the origin or the direction, or a bound) cannot be this part, or `None`. Coordinates
+    /// and `t_min` must be finite; `t_max` must not be NaN (`+inf` leaves the ray open). A
+    /// zero direction or `t_min > t_max` is a ray that hits nothing, not an error.
+    pub fn problem(self, v: f64) -> Option<&'static str> {
+        match self {
+            RayPart::TMax => v.is_nan().then_some("NaN"),
+            _ => (!v.is_finite()).then_some("not finite"),
         }
     }
 }
