@@ -16,7 +16,6 @@ use rayon::ThreadPool;
 use sahkd::{Hit, KdTree, Ray, Vec3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::all_hits;
 use crate::arrays::{BoundView, Points};
 use crate::columns::HitColumns;
 
@@ -189,7 +188,7 @@ pub fn count_hits(tree: &KdTree, rays: &RayArrays<'_>, pool: &ThreadPool) -> Opt
                 let mut buf = [EMPTY; BLOCK];
                 if let Some(block) = rays.block(b, &mut buf, &bad) {
                     for (count, ray) in out.iter_mut().zip(block) {
-                        all_hits::all_hits(tree, ray, hits);
+                        tree.all_hits_into(ray, hits);
                         *count = hits.len() as i64;
                     }
                 }

@@ -5,7 +5,6 @@
 //! the interpreter released (`Python::detach`), so other Python threads go on meanwhile.
 //! Results go back as numpy arrays that take over the Rust vectors without a copy.
 
-mod all_hits;
 mod arrays;
 mod batch;
 mod columns;
@@ -127,8 +126,8 @@ impl PyKdTree {
                 let (mut flat, mut counts, mut buf) = (Vec::new(), Vec::new(), Vec::new());
                 for r in block {
                     match walk {
-                        Walk::Tree => all_hits::all_hits(tree, r, &mut buf),
-                        Walk::Brute => all_hits::brute_all_hits(tree, r, &mut buf),
+                        Walk::Tree => tree.all_hits_into(r, &mut buf),
+                        Walk::Brute => tree.brute_all_hits_into(r, &mut buf),
                     }
                     buf.truncate(max_hits.unwrap_or(usize::MAX));
                     counts.push(buf.len() as u32);

@@ -504,11 +504,7 @@ impl SceneTree {
 
     /// Every hit, each (geometry, primitive) once, nearest first (ties as in `intersect`).
     pub fn all_hits(&self, ray: &Ray) -> Vec<SceneHit> {
-        let mut hits = Vec::new();
-        self.tree.for_each_hit(ray, |h| hits.push(h));
-        // A triangle in several leaves is reported once per leaf, each time the same.
-        hits.sort_unstable_by(|a, b| a.t.total_cmp(&b.t).then(a.prim.cmp(&b.prim)));
-        hits.dedup_by_key(|h| h.prim);
+        let hits = self.tree.all_hits(ray);
         hits.into_iter().map(|h| self.scene_hit(h)).collect()
     }
 

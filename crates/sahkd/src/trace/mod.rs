@@ -19,6 +19,7 @@
 //! own float32 one, and keeps looking a little beyond its best hit (`Closest`), since a
 //! tied triangle may sit in a later leaf.
 
+mod all_hits;
 pub mod brute;
 mod packet;
 pub mod precise;
