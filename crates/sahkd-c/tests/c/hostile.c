@@ -1,0 +1,362 @@
+/* Hostile and careless callers: every misuse the C API can detect gets its status and a
+ * message naming the argument, never a crash. Also hand-computed answers on a unit square,
+ * so a status of SAHKD_OK is known to carry the right result. Run by tests/examples.rs
+ * (with AddressSanitizer where the compiler has it). */
+#include <math.h>
+#include <pthread.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sahkd.h"
+
+static int failures = 0;
+
+#define EXPECT(cond)                                                                  \
+    do {                                                                              \
+        if (!(cond)) {                                                                \
+            fprintf(stderr, "%s:%d: expected %s\n", __FILE__, __LINE__, #cond);       \
+            failures++;                                                               \
+        }                                                                             \
+    } while (0)
+
+/* `call` returns `status` and the thread's last error contains `word`. */
+#define EXPECT_ERR(call, status, word)                                                \
+    do {                                                                              \
+        sahkd_status got_ = (call);                                                   \
+        if (got_ != (status) || !strstr(sahkd_last_error(), (word))) {                \
+            fprintf(stderr, "%s:%d: %s gave %s (%s), expected %s mentioning '%s'\n",  \
+                    __FILE__, __LINE__, #call, sahkd_status_name(got_),               \
+                    sahkd_last_error(), #status, (word));                             \
+            failures++;                                                               \
+        }                                                                             \
+    } while (0)
+
+#define OK(call) EXPECT_ERR(call, SAHKD_OK, "")
+
+/* The unit square in the plane z = 1, as two triangles. */
+static const float square_vertices[] = {0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1};
+static const uint32_t square_indices[] = {0, 1, 2, 0, 2, 3};
+
+static sahkd_ray ray_up(float x, float y) {
+    sahkd_ray r = {{x, y, 0}, 0, {0, 0, 1}, INFINITY};
+    return r;
+}
+
+static void *other_thread(void *arg) {
+    (void)arg;
+    /* The last error is per thread: this one has had no failure. */
+    return (void *)(uintptr_t)(strcmp(sahkd_last_error(), "") == 0);
+}
+
+int main(void) {
+    sahkd_mesh *mesh = NULL;
+    sahkd_tree *tree = NULL;
+    sahkd_ray ray = ray_up(0.25f, 0.5f);
+    sahkd_hit hit;
+    bool flag;
+
+    /* Meshes: NULL arrays, bad indices, non-finite vertices, files that are not meshes. */
+    EXPECT_ERR(sahkd_mesh_new(NULL, 4, square_indices, 2, &mesh), SAHKD_ERROR_NULL, "vertices");
+    EXPECT(mesh == NULL);
+    EXPECT_ERR(sahkd_mesh_new(square_vertices, 4, square_indices, 2, NULL), SAHKD_ERROR_NULL,
+               "mesh");
+    EXPECT_ERR(sahkd_mesh_new(square_vertices, 3, square_indices, 2, &mesh),
+               SAHKD_ERROR_INVALID_MESH, "3");
+    float nan_vertices[12];
+    memcpy(nan_vertices, square_vertices, sizeof nan_vertices);
+    nan_vertices[4] = NAN;
+    EXPECT_ERR(sahkd_mesh_new(nan_vertices, 4, square_indices, 2, &mesh),
+               SAHKD_ERROR_INVALID_MESH, "");
+    EXPECT_ERR(sahkd_mesh_new((const float *)((const char *)square_vertices + 1), 4,
+                              square_indices, 2, &mesh),
+               SAHKD_ERROR_ALIGNMENT, "vertices");
+    EXPECT_ERR(sahkd_mesh_new(square_vertices, SIZE_MAX / 4, square_indices, 2, &mesh),
+               SAHKD_ERROR_INVALID_ARGUMENT, "overflow");
+    EXPECT_ERR(sahkd_mesh_load("/nonexistent/mesh.ply", &mesh), SAHKD_ERROR_IO, "nonexistent");
+    EXPECT_ERR(sahkd_mesh_load(NULL, &mesh), SAHKD_ERROR_NULL, "path");
+    OK(sahkd_mesh_new(NULL, 0, NULL, 0, &mesh)); /* empty arrays may be NULL */
+    sahkd_mesh_free(mesh);
+    mesh = NULL;
+    sahkd_mesh_free(NULL);
+
+    OK(sahkd_mesh_new(square_vertices, 4, square_indices, 2, &mesh));
+    size_t vertices = 0, triangles = 0;
+    OK(sahkd_mesh_counts(mesh, &vertices, &triangles));
+    EXPECT(vertices == 4 && triangles == 2);
+
+    /* Options: unset size, values out of range, unknown names, an older caller's size. */
+    sahkd_build_options options;
+    memset(&options, 0, sizeof options);
+    EXPECT_ERR(sahkd_tree_build(mesh, &options, &tree), SAHKD_ERROR_INVALID_ARGUMENT, "size");
+    EXPECT(tree == NULL);
+    OK(sahkd_build_options_default(&options));
+    EXPECT(options.size == sizeof options && options.algorithm == SAHKD_ALGORITHM_HYBRID);
+    struct {
+        size_t offset;
+        uint32_t value;
+        const char *word;
+    } bad[] = {
+        {offsetof(sahkd_build_options, algorithm), 99, "algorithm"},
+        {offsetof(sahkd_build_options, axes), 2, "axes"},
+        {offsetof(sahkd_build_options, counting), 7, "counting"},
+        {offsetof(sahkd_build_options, clip), 2, "clip"},
+        {offsetof(sahkd_build_options, threads), 1000000, "threads"},
+        {offsetof(sahkd_build_options, bins), 1, "bins"},
+        {offsetof(sahkd_build_options, bins), (uint32_t)-5, "bins"},
+        {offsetof(sahkd_build_options, max_depth), 61, "max_depth"},
+        {offsetof(sahkd_build_options, size), sizeof options + 4, "size"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        sahkd_build_options o;
+        OK(sahkd_build_options_default(&o));
+        memcpy((char *)&o + bad[i].offset, &bad[i].value, sizeof(uint32_t));
+        EXPECT_ERR(sahkd_build_options_validate(&o), SAHKD_ERROR_INVALID_ARGUMENT, bad[i].word);
+        EXPECT_ERR(sahkd_tree_build(mesh, &o, &tree), SAHKD_ERROR_INVALID_ARGUMENT, bad[i].word);
+    }
+    {
+        sahkd_build_options o;
+        OK(sahkd_build_options_default(&o));
+        o.empty_bonus = 5.0f;
+        EXPECT_ERR(sahkd_build_options_validate(&o), SAHKD_ERROR_INVALID_ARGUMENT, "empty_bonus");
+        o.empty_bonus = 0.8f;
+        o.intersection_cost = NAN;
+        EXPECT_ERR(sahkd_build_options_validate(&o), SAHKD_ERROR_INVALID_ARGUMENT, "K_I");
+        OK(sahkd_build_options_default(&o));
+        o.algorithm = SAHKD_ALGORITHM_LEVEL;
+        o.bins = 16;
+        EXPECT_ERR(sahkd_build_options_validate(&o), SAHKD_ERROR_INVALID_ARGUMENT, "bins");
+    }
+    /* The header's numbers are the library's names. */
+    struct {
+        const char *key, *value;
+        size_t offset;
+        uint32_t code;
+    } names[] = {
+        {"algorithm", "hybrid", offsetof(sahkd_build_options, algorithm), SAHKD_ALGORITHM_HYBRID},
+        {"algorithm", "sweep", offsetof(sahkd_build_options, algorithm), SAHKD_ALGORITHM_SWEEP},
+        {"algorithm", "level", offsetof(sahkd_build_options, algorithm), SAHKD_ALGORITHM_LEVEL},
+        {"algorithm", "naive", offsetof(sahkd_build_options, algorithm), SAHKD_ALGORITHM_NAIVE},
+        {"algorithm", "median", offsetof(sahkd_build_options, algorithm), SAHKD_ALGORITHM_MEDIAN},
+        {"axes", "longest", offsetof(sahkd_build_options, axes), SAHKD_AXES_LONGEST},
+        {"axes", "all", offsetof(sahkd_build_options, axes), SAHKD_AXES_ALL},
+        {"counting", "space-tree", offsetof(sahkd_build_options, counting), SAHKD_COUNTING_SPACE_TREE},
+        {"counting", "scan", offsetof(sahkd_build_options, counting), SAHKD_COUNTING_SCAN},
+    };
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
+        sahkd_build_options o;
+        OK(sahkd_build_options_default(&o));
+        memset((char *)&o + names[i].offset, 0xff, sizeof(uint32_t));
+        OK(sahkd_build_options_set(&o, names[i].key, names[i].value));
+        uint32_t code;
+        memcpy(&code, (char *)&o + names[i].offset, sizeof code);
+        EXPECT(code == names[i].code);
+    }
+    EXPECT_ERR(sahkd_build_options_set(&options, "algorithm", "quick"),
+               SAHKD_ERROR_INVALID_ARGUMENT, "hybrid, sweep");
+    EXPECT_ERR(sahkd_build_options_set(&options, "colour", "red"), SAHKD_ERROR_INVALID_ARGUMENT,
+               "colour");
+    EXPECT_ERR(sahkd_build_options_preset("fastest", &options), SAHKD_ERROR_INVALID_ARGUMENT,
+               "fastest");
+    OK(sahkd_build_options_preset("quality", &options));
+    EXPECT(options.axes == SAHKD_AXES_ALL && options.bins == 0);
+    {
+        /* A caller compiled when the struct ended after `algorithm`: the rest are defaults. */
+        sahkd_build_options old;
+        memset(&old, 0xee, sizeof old);
+        old.size = offsetof(sahkd_build_options, axes);
+        old.algorithm = SAHKD_ALGORITHM_SWEEP;
+        OK(sahkd_tree_build(mesh, &old, &tree));
+        sahkd_build_options back;
+        OK(sahkd_tree_options(tree, &back));
+        EXPECT(back.algorithm == SAHKD_ALGORITHM_SWEEP && back.clip == 1 &&
+               back.bins == SAHKD_BINS_DEFAULT);
+        sahkd_tree_free(tree);
+        tree = NULL;
+    }
+
+    OK(sahkd_tree_build(mesh, NULL, &tree));
+
+    /* Hand-computed answers: the ray at (0.25, 0.5) meets triangle 1 at t = 1. */
+    OK(sahkd_tree_intersect(tree, &ray, &hit));
+    EXPECT(hit.t == 1.0f && hit.prim == 1 && hit.geometry == 0);
+    sahkd_ray miss = ray_up(2, 2);
+    OK(sahkd_tree_intersect(tree, &miss, &hit));
+    EXPECT(hit.prim == SAHKD_INVALID_ID && isinf(hit.t));
+    OK(sahkd_tree_occluded(tree, &ray, &flag));
+    EXPECT(flag);
+    sahkd_ray short_ray = ray;
+    short_ray.t_max = 0.5f;
+    OK(sahkd_tree_occluded(tree, &short_ray, &flag));
+    EXPECT(!flag);
+    /* Through the shared diagonal: both triangles, once each. */
+    sahkd_ray diagonal = ray_up(0.5f, 0.5f);
+    sahkd_hit all[4];
+    size_t count = 99;
+    OK(sahkd_tree_all_hits(tree, &diagonal, all, 4, &count));
+    EXPECT(count == 2 && all[0].prim == 0 && all[1].prim == 1);
+    EXPECT_ERR(sahkd_tree_all_hits(tree, &diagonal, all, 1, &count), SAHKD_ERROR_BUFFER_TOO_SMALL,
+               "2");
+    EXPECT(count == 2 && all[0].prim == 0);
+    uint32_t hits_count = 0;
+    OK(sahkd_tree_count_hits(tree, &diagonal, &hits_count));
+    EXPECT(hits_count == 2);
+    const float point[3] = {0.25f, 0.5f, 3.0f};
+    sahkd_closest closest;
+    OK(sahkd_tree_closest_point(tree, point, 1, 0, &closest, 0, 0));
+    EXPECT(closest.distance == 2.0 && closest.point[2] == 1.0 && closest.prim == 1);
+    double distance = 0;
+    OK(sahkd_tree_distance(tree, point, 1, 0, &distance, 0, SAHKD_QUERY_PARALLEL));
+    EXPECT(distance == 2.0);
+
+    /* Handles and outputs that are NULL; a freed handle set to NULL. */
+    EXPECT_ERR(sahkd_tree_intersect(NULL, &ray, &hit), SAHKD_ERROR_NULL, "tree");
+    EXPECT_ERR(sahkd_tree_intersect(tree, NULL, &hit), SAHKD_ERROR_NULL, "ray");
+    EXPECT_ERR(sahkd_tree_intersect(tree, &ray, NULL), SAHKD_ERROR_NULL, "hit");
+    EXPECT_ERR(sahkd_tree_occluded(tree, &ray, NULL), SAHKD_ERROR_NULL, "occluded");
+    sahkd_tree *none = tree;
+    EXPECT_ERR(sahkd_tree_build(NULL, NULL, &none), SAHKD_ERROR_NULL, "mesh");
+    EXPECT(none == NULL); /* cleared on failure */
+    EXPECT_ERR(sahkd_tree_bounds(tree, NULL, NULL), SAHKD_ERROR_NULL, "lo");
+    EXPECT_ERR(sahkd_scene_tree_intersect(NULL, &ray, &hit), SAHKD_ERROR_NULL, "scene");
+
+    /* Arrays: NULL, misaligned, bad strides, counts that overflow, unknown flags. */
+    sahkd_ray rays[8];
+    sahkd_hit hits[8];
+    for (int i = 0; i < 8; i++) rays[i] = ray_up(0.1f * i + 0.05f, 0.3f);
+    EXPECT_ERR(sahkd_tree_intersect_aos(tree, NULL, 8, 0, hits, 0, 0), SAHKD_ERROR_NULL, "rays");
+    EXPECT_ERR(sahkd_tree_intersect_aos(tree, rays, 8, 0, NULL, 0, 0), SAHKD_ERROR_NULL, "hits");
+    OK(sahkd_tree_intersect_aos(tree, NULL, 0, 0, NULL, 0, 0));
+    EXPECT_ERR(sahkd_tree_intersect_aos(tree, (const sahkd_ray *)((const char *)rays + 2), 4, 0,
+                                        hits, 0, 0),
+               SAHKD_ERROR_ALIGNMENT, "rays");
+    EXPECT_ERR(sahkd_tree_intersect_aos(tree, rays, 4, 33, hits, 0, 0), SAHKD_ERROR_ALIGNMENT,
+               "stride");
+    EXPECT_ERR(sahkd_tree_intersect_aos(tree, rays, 4, 16, hits, 0, 0),
+               SAHKD_ERROR_INVALID_ARGUMENT, "stride");
+    EXPECT_ERR(sahkd_tree_intersect_aos(tree, rays, SIZE_MAX / 16, 0, hits, 0, 0),
+               SAHKD_ERROR_INVALID_ARGUMENT, "overflow");
+    EXPECT_ERR(sahkd_tree_intersect_aos(tree, rays, 8, 0, hits, SIZE_MAX / 2 - 3, 0),
+               SAHKD_ERROR_INVALID_ARGUMENT, "overflow");
+    EXPECT_ERR(sahkd_tree_intersect_aos(tree, rays, 8, 0, hits, 0, 6),
+               SAHKD_ERROR_INVALID_ARGUMENT, "flags");
+    EXPECT_ERR(sahkd_tree_contains(tree, point, 1, 0, 7, &flag, 0, 0),
+               SAHKD_ERROR_INVALID_ARGUMENT, "inside");
+    EXPECT_ERR(sahkd_tree_closest_point(tree, point, 1, 0, NULL, 0, 0), SAHKD_ERROR_NULL, "out");
+
+    /* AoS with strides, SoA with strides and the single-ray call agree. */
+    OK(sahkd_tree_intersect_aos(tree, rays, 8, 0, hits, 0, SAHKD_QUERY_PARALLEL));
+    struct padded {
+        sahkd_ray ray;
+        float pad[3];
+    } padded[8];
+    struct {
+        float t, u, v;
+        uint32_t prim, geometry;
+        double pad;
+    } soa_out[8];
+    float columns[8][8]; /* per ray: ox oy oz dx dy dz tmin tmax */
+    for (int i = 0; i < 8; i++) {
+        padded[i].ray = rays[i];
+        for (int k = 0; k < 3; k++) {
+            columns[i][k] = rays[i].origin[k];
+            columns[i][3 + k] = rays[i].direction[k];
+        }
+        columns[i][6] = rays[i].t_min;
+        columns[i][7] = rays[i].t_max;
+    }
+    sahkd_hit strided[16];
+    OK(sahkd_tree_intersect_aos(tree, &padded[0].ray, 8, sizeof padded[0], strided,
+                                2 * sizeof(sahkd_hit), 0));
+    sahkd_rays_soa soa = {&columns[0][0], &columns[0][1], &columns[0][2], &columns[0][3],
+                          &columns[0][4], &columns[0][5], &columns[0][6], NULL,
+                          sizeof columns[0]};
+    sahkd_hits_soa soa_hits = {&soa_out[0].t, &soa_out[0].u, &soa_out[0].v, &soa_out[0].prim,
+                               &soa_out[0].geometry, sizeof soa_out[0]};
+    OK(sahkd_tree_intersect_soa(tree, &soa, 8, &soa_hits, 0));
+    for (int i = 0; i < 8; i++) {
+        sahkd_hit one;
+        OK(sahkd_tree_intersect(tree, &rays[i], &one));
+        EXPECT(memcmp(&one, &hits[i], sizeof one) == 0);
+        EXPECT(memcmp(&one, &strided[2 * i], sizeof one) == 0);
+        EXPECT(one.t == soa_out[i].t && one.u == soa_out[i].u && one.v == soa_out[i].v &&
+               one.prim == soa_out[i].prim && one.geometry == soa_out[i].geometry);
+        EXPECT(one.t == 1.0f);
+    }
+    soa.origin_y = NULL;
+    EXPECT_ERR(sahkd_tree_intersect_soa(tree, &soa, 8, &soa_hits, 0), SAHKD_ERROR_NULL,
+               "origin_y");
+
+    /* Save, load, bytes: the same answers; broken files and bytes are refused. */
+    EXPECT_ERR(sahkd_tree_save(tree, "/nonexistent/dir/tree.sahkd"), SAHKD_ERROR_IO,
+               "nonexistent");
+    none = tree;
+    EXPECT_ERR(sahkd_tree_load("/nonexistent/tree.sahkd", &none), SAHKD_ERROR_IO, "");
+    EXPECT(none == NULL);
+    uint8_t *bytes = NULL;
+    size_t size = 0;
+    OK(sahkd_tree_to_bytes(tree, &bytes, &size));
+    EXPECT(bytes != NULL && size > 0);
+    sahkd_tree *copy = NULL;
+    EXPECT_ERR(sahkd_tree_from_bytes(bytes, size / 2, &copy), SAHKD_ERROR_INVALID_TREE, "");
+    EXPECT(copy == NULL);
+    bytes[size - 1] ^= 0x55;
+    EXPECT_ERR(sahkd_tree_from_bytes(bytes, size, &copy), SAHKD_ERROR_INVALID_TREE, "checksum");
+    bytes[size - 1] ^= 0x55;
+    OK(sahkd_tree_from_bytes(bytes, size, &copy));
+    sahkd_bytes_free(bytes, size);
+    OK(sahkd_tree_validate(copy));
+    OK(sahkd_tree_intersect(copy, &ray, &hit));
+    EXPECT(hit.t == 1.0f && hit.prim == 1);
+    sahkd_tree_free(copy);
+    copy = NULL;
+    EXPECT_ERR(sahkd_tree_intersect(copy, &ray, &hit), SAHKD_ERROR_NULL, "tree");
+    sahkd_tree_free(copy); /* NULL: nothing */
+
+    /* Scenes: unknown ids, singular transforms, then the geometry id in the answers. */
+    sahkd_scene *scene = NULL;
+    OK(sahkd_scene_new(&scene));
+    uint32_t id = 0, instance = 0;
+    OK(sahkd_scene_add_mesh(scene, mesh, &id));
+    const double shift[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 1}; /* z + 1 */
+    const double flat[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0};
+    EXPECT_ERR(sahkd_scene_add_instance(scene, 5, shift, &instance), SAHKD_ERROR_INVALID_ARGUMENT,
+               "5");
+    EXPECT_ERR(sahkd_scene_add_instance(scene, id, flat, &instance), SAHKD_ERROR_INVALID_ARGUMENT,
+               "singular");
+    EXPECT_ERR(sahkd_scene_add_instance(scene, id, NULL, &instance), SAHKD_ERROR_NULL,
+               "transform");
+    OK(sahkd_scene_add_instance(scene, id, shift, &instance));
+    EXPECT(id == 0 && instance == 1);
+    sahkd_scene_tree *built = NULL;
+    OK(sahkd_scene_build(scene, NULL, &built));
+    sahkd_scene_free(scene);
+    sahkd_ray down = {{0.25f, 0.5f, 5.0f}, 0, {0, 0, -1}, INFINITY};
+    OK(sahkd_scene_tree_intersect(built, &down, &hit));
+    EXPECT(hit.geometry == 1 && hit.t == 3.0f);
+    OK(sahkd_scene_tree_closest_point(built, point, 1, 0, &closest, 0, 0));
+    EXPECT(closest.geometry == 1 && closest.distance == 1.0);
+    sahkd_scene_tree_free(built);
+
+    /* Statuses have names; the last error belongs to the thread that failed. */
+    EXPECT(strcmp(sahkd_status_name(SAHKD_ERROR_NULL), "SAHKD_ERROR_NULL") == 0);
+    EXPECT(strcmp(sahkd_status_name(99), "unknown status") == 0);
+    EXPECT(strlen(sahkd_version()) > 0);
+    EXPECT_ERR(sahkd_tree_intersect(NULL, &ray, &hit), SAHKD_ERROR_NULL, "tree");
+    pthread_t thread;
+    void *clean = NULL;
+    EXPECT(pthread_create(&thread, NULL, other_thread, NULL) == 0);
+    EXPECT(pthread_join(thread, &clean) == 0);
+    EXPECT(clean == (void *)1);
+    EXPECT(strstr(sahkd_last_error(), "tree") != NULL);
+
+    sahkd_tree_free(tree);
+    sahkd_mesh_free(mesh);
+    if (failures) {
+        fprintf(stderr, "%d failures\n", failures);
+        return 1;
+    }
+    printf("hostile: all checks passed\n");
+    return 0;
+}
