@@ -123,9 +123,13 @@ impl Transform {
             + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
     }
 
-    /// Finite, and `A` invertible: its determinant not negligible against the product of
-    /// its row lengths (which it equals for orthogonal rows), so a matrix flattened to within
-    /// rounding is refused as well as an exactly singular one.
+    /// Finite, and `A` invertible in float32 terms: every row of `A` long enough that the
+    /// placed coordinates do not underflow float32 (at least its smallest normal number), and
+    /// `A` with its rows scaled to length 1 well conditioned (condition number below
+    /// `1 / f32::EPSILON`). Rows are the placed coordinates: a row nearly a combination of
+    /// the others, or one that scales to nothing, leaves that coordinate without the mesh's
+    /// shape once rounded to float32, flat within rounding. Scaling rows apart (different
+    /// units per axis) loses nothing in float32 and is accepted.
     pub fn validate(&self) -> Result<(), SceneError> {
         if let Some((i, j)) = (0..3)
             .flat_map(|i| (0..4).map(move |j| (i, j)))
@@ -136,19 +140,64 @@ impl Transform {
                 self.0[i][j]
             )));
         }
-        let rows: f64 = self
-            .0
+        // Lengths without overflow: scaled by the row's largest entry first.
+        let lengths = self.0.map(|r| {
+            let m = r[0].abs().max(r[1].abs()).max(r[2].abs());
+            if m == 0.0 {
+                return 0.0;
+            }
+            m * ((r[0] / m).powi(2) + (r[1] / m).powi(2) + (r[2] / m).powi(2)).sqrt()
+        });
+        if let Some(i) = lengths
             .iter()
-            .map(|r| (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt())
-            .product();
-        let det = self.determinant();
-        // NaN: entries so large their products overflow; such a mesh could not be placed anyway.
-        if det.is_nan() || det.abs() <= 1e-12 * rows {
+            .position(|&l| !(l >= f32::MIN_POSITIVE as f64))
+        {
             return Err(SceneError::BadTransform(format!(
-                "the 3x3 part is singular (determinant {det:e}): it would flatten the mesh"
+                "the 3x3 part is singular in float32: row {i} has length {:e}, below float32's \
+                 smallest normal number {:e}; it would flatten the mesh",
+                lengths[i],
+                f32::MIN_POSITIVE
+            )));
+        }
+        let unit = Transform([0, 1, 2].map(|i| {
+            let r = self.0[i];
+            [r[0] / lengths[i], r[1] / lengths[i], r[2] / lengths[i], 0.0]
+        }));
+        let condition = unit.condition();
+        if !(condition < 1.0 / f32::EPSILON as f64) {
+            return Err(SceneError::BadTransform(format!(
+                "the 3x3 part is singular or too nearly so for float32 (condition number \
+                 {condition:.1e} with its rows scaled to length 1, at most {:.1e}): it would \
+                 flatten the mesh",
+                1.0 / f32::EPSILON as f64
             )));
         }
         Ok(())
+    }
+
+    /// The condition number of `A` in the Frobenius norm, `|A| |A^-1|`; infinite when `A`
+    /// is singular.
+    fn condition(&self) -> f64 {
+        let a = &self.0;
+        let det = self.determinant();
+        if det == 0.0 {
+            return f64::INFINITY;
+        }
+        // The adjugate's entries, each a 2x2 minor; A^-1 is the adjugate over det.
+        let minor = |r0: usize, r1: usize, c0: usize, c1: usize| {
+            a[r0][c0] * a[r1][c1] - a[r0][c1] * a[r1][c0]
+        };
+        let mut adjugate = 0.0;
+        for (r0, r1) in [(1, 2), (0, 2), (0, 1)] {
+            for (c0, c1) in [(1, 2), (0, 2), (0, 1)] {
+                adjugate += minor(r0, r1, c0, c1).powi(2);
+            }
+        }
+        let norm: f64 = a
+            .iter()
+            .map(|r| r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
+            .sum();
+        (norm * adjugate).sqrt() / det.abs()
     }
 }
 

@@ -793,3 +793,43 @@ fn bad_transforms_and_ids_are_refused_clearly() {
     // Refused calls added nothing.
     assert_eq!(scene.len(), 4);
 }
+
+/// Singular in float32 terms is judged by the condition of the rows scaled to length 1 and
+/// by float32's range, not by the determinant: the determinant of a shear is 1 whatever its
+/// size, and that of a row scaled to 1e-300 is no smaller than the row.
+#[test]
+fn transforms_are_judged_by_their_condition_in_float32() {
+    let (cube, _) = cube();
+    let mut scene = Scene::new();
+    let c = scene.add_mesh(&cube).unwrap();
+    let err = |r: Result<u32, sahkd::SceneError>| r.unwrap_err().to_string();
+    let shear = |s: f64| affine([[1.0, s, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], [0.0; 3]);
+    let diag = |d: [f64; 3]| {
+        affine(
+            [[d[0], 0.0, 0.0], [0.0, d[1], 0.0], [0.0, 0.0, d[2]]],
+            [0.0; 3],
+        )
+    };
+    // A shear of 1e12 leaves x = x + 1e12 y without x once rounded to float32.
+    let message = err(scene.add_instance(c, shear(1e12)));
+    assert!(message.contains("condition number"), "{message}");
+    assert!(message.contains("singular"), "{message}");
+    // A row of 1e-300 is 0 in float32: flat, although the rows are orthogonal.
+    let message = err(scene.add_instance(c, diag([1e-300, 1.0, 1.0])));
+    assert!(
+        message.contains("row 0") && message.contains("1e-300"),
+        "{message}"
+    );
+    // Modest shears, axes scaled apart and huge uniform scales place the mesh.
+    scene.add_instance(c, shear(1e3)).unwrap();
+    scene.add_instance(c, diag([1e4, 1e-4, 1.0])).unwrap();
+    scene.add_instance(c, diag([1e-30, 1e-30, 1e-30])).unwrap();
+    scene
+        .add_instance(c, diag([1e200, 1e200, 1e200]))
+        .unwrap_or_else(|e| {
+            panic!("a huge uniform scale is no flattening, whatever baking says later: {e}")
+        });
+    // A shear near float32's precision is refused, one well inside it accepted.
+    assert!(scene.add_instance(c, shear(1e8)).is_err());
+    scene.add_instance(c, shear(1e5)).unwrap();
+}
