@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Rays per second of sahkd.dask.trace on a LocalCluster of 1 and of 2 workers (issue 17).
+"""Rays per second of sahkd.dask.trace on a LocalCluster of 1 and of 2 workers.
 
     python scripts/dask_bench.py [MESH] [--rays 16000000] [--blocks 64] [--workers 1,2]
     python scripts/dask_bench.py MESH --scheduler tcp://host:8786   # a real cluster instead

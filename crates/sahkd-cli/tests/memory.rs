@@ -1,4 +1,4 @@
-//! Memory per triangle of the whole pipeline at one million triangles (issue 17): the peak
+//! Memory per triangle of the whole pipeline at one million triangles: the peak
 //! resident memory `build --json` and `trace --json` report, from the OS's high-water mark,
 //! held under a bound so that a change which makes sahkd hungrier shows up in CI.
 //!

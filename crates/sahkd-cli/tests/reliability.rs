@@ -1,4 +1,4 @@
-//! Nothing silently wrong, nothing lost (issue 14): lying headers, thread counts, size
+//! Nothing silently wrong, nothing lost: lying headers, thread counts, size
 //! limits, outputs that never clobber or half-write, inputs that load wrong, and messages
 //! that say what is wrong. Each test failed before its fix.
 

@@ -4,7 +4,7 @@
 //! cargo run --release -p sahkd --example query_throughput -- MESH [--points 1000000]
 //!     [--threads 1,2] [--repeat 3] [--check 200] [--dump DIR]
 //! ```
-//! The points (fixed seed) are the issue's mix: a third within 1 % of the bounding-box
+//! The points (fixed seed) are a mix: a third within 1 % of the bounding-box
 //! diagonal of the surface (a random point of a random triangle moved by up to that much in
 //! a random direction), a third in the bounding box grown by 20 % about its centre, a third in
 //! a box three times the bounding box's size. Each query runs `--repeat` times in a rayon pool
@@ -70,7 +70,7 @@ fn parse_args() -> Result<Args, String> {
     Ok(args)
 }
 
-/// The issue's mix of query points (see the module documentation).
+/// The mix of query points (see the module documentation).
 fn make_points(tree: &KdTree, n: usize) -> Vec<Vec3> {
     let mut rng = StdRng::seed_from_u64(16);
     let b = tree.bounds();

@@ -17,7 +17,7 @@ pub const MAX_DEPTH_CAP: u32 = 60;
 /// (`K_T = 15`, [`CostModel::wald_havran`]) assume a triangle test costs more than a node
 /// step; this traversal tests a leaf's triangles four at a time, so a triangle costs less
 /// and a node step relatively more. Timed on a quiet machine (BENCHMARKS.md, "The cost
-/// constants, timed"), K_T 45 traced the primary, shadow, AO and bounce rays of dragon and
+/// constants"), K_T 45 traced the primary, shadow, AO and bounce rays of dragon and
 /// bunny 5-11 % faster on their geometric mean than 15, Sponza's from 1 % slower to 4 %
 /// faster, from trees with 2.5-4.3x fewer nodes built in a half to two thirds of the time.
 ///

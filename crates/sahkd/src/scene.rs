@@ -45,12 +45,10 @@
 //!   walk of [`KdTree`] unchanged, answers checked against the same brute force.
 //!
 //! The price is memory and build time proportional to the placed triangles (instances times
-//! mesh size). Measured (`examples/scene_instances.rs`, 64 rotated, slightly overlapping
-//! copies of `spd:sphere:20000`, 100k rays, one thread, on a loaded 2-core machine): one tree
-//! stores 1.28M triangles and builds in 9.9 s; one tree per mesh stores 20k and builds in
-//! 0.07 s; closest hits run at 0.26 and 0.32 Mrays/s, the same hits. So rays are about even,
-//! and a scene of many copies of a big mesh pays the instance count in build time and memory
-//! here: that is the case for adding the top tree beside this one (for rigid placements,
+//! mesh size). `examples/scene_instances.rs` compares the two on copies of one mesh: the one
+//! tree stores and builds every copy's triangles, while its rays find the same hits at about
+//! the rate of a tree per mesh. So a scene of many copies of a big mesh pays the instance
+//! count in build time and memory here: that is the case for adding the top tree beside this one (for rigid placements,
 //! where the point queries survive too), not instead of it.
 //!
 //! # Mirrors

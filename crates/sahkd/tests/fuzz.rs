@@ -1,4 +1,4 @@
-//! Fuzzing of the mesh readers in CI, on stable Rust (issue 14): small valid PLY files
+//! Fuzzing of the mesh readers in CI, on stable Rust: small valid PLY files
 //! (ASCII, binary little- and big-endian, every scalar type, extra properties, lists and
 //! elements) and OBJ files are generated with the mesh they hold, checked to read as that
 //! mesh, then mutated (truncations, byte flips, insertions, deletions, lying counts and

@@ -267,7 +267,7 @@ fn ply_all_formats_give_the_same_mesh() {
 #[test]
 fn ply_hand_written_ascii() {
     // CRLF in the header, comments, obj_info, a blank line and the vertex_index spelling.
-    // Each record on its own line (issue 14: a record split over lines is an error).
+    // Each record on its own line: a record split over lines is an error.
     let text = "ply\r\nformat ascii 1.0\r\ncomment made by hand\r\nobj_info nothing\r\n\r\n\
         element vertex 6\r\nproperty float x\r\nproperty float y\r\nproperty float z\r\n\
         property uchar red\r\n\

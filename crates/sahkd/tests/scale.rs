@@ -271,7 +271,7 @@ fn power_of_two_scaling_changes_no_answer() {
     }
 }
 
-/// The example: two parallel triangles 1e15 across, at z = -5e14 and z = 0.
+/// Two parallel triangles 1e15 across, at z = -5e14 and z = 0.
 #[test]
 fn parallel_triangles_1e15_across() {
     let big = 1e15f32;

@@ -1,4 +1,4 @@
-//! Fuzzing of the `.npy` ray and point readers (issue 14), with the mesh readers' harness
+//! Fuzzing of the `.npy` ray and point readers, with the mesh readers' harness
 //! (`crates/sahkd/tests/common/fuzz.rs`: counting allocator, watchdog, time budget, cases
 //! rerun by number): valid (R, 6), (R, 8) and (N, 3) float32 files in every header version,
 //! either byte order and either memory order must read as written; mutated (lying shapes,

@@ -77,7 +77,7 @@ pub struct BuildOptions {
 }
 
 /// The bins of a hybrid build whose options leave `bins` unset. Measured on bunny,
-/// dragon_res2 and dragon (BENCHMARKS.md, "Binned SAH by default"): 0-23 % less build time,
+/// dragon_res2 and dragon (BENCHMARKS.md, "Binned SAH for the big nodes"): 0-23 % less build time,
 /// a third of the working memory, SAH cost within 0.35 % of exact and a modelled ray cost
 /// within 0.3 %; the exact sweep still prices every node of 16,384 references or fewer.
 pub const HYBRID_BINS: u32 = 256;

@@ -15,8 +15,7 @@
 //!
 //! Batches run on the current rayon pool, over the points sorted along a Morton curve:
 //! neighbours walk the same nodes while they are cached, and each closest-point walk starts
-//! bounded by its predecessors' triangles (on dragon, 2 threads, closest points of points
-//! near, around and far from the mesh 2x faster, occupancy 1.5x; BENCHMARKS.md). Each
+//! bounded by its predecessors' triangles, so most of the tree is never entered. Each
 //! point's answer is the single-point answer, whatever the order and the number of threads.
 
 pub mod brute;

@@ -33,9 +33,9 @@ pub(super) const WIDTH: usize = 4;
 /// Rays per group: the batch calls hand out groups of neighbouring rays, and a group's rays
 /// are sorted by direction octant before they are cut into packets, so that rays of
 /// scattered directions (ambient occlusion, bounces) still find partners of their octant.
-/// 128 rather than 64: fewer rays left over at the end of an octant's run, which walk alone
-/// (those are mostly grazing rays and cost about 2.7 times a packet lane); modelled cost of
-/// bunny's AO rays 803M -> 788M, primary and bounce rays unchanged (BENCHMARKS.md).
+/// 128 rather than 64: fewer rays are left over at the end of an octant's run to walk alone,
+/// and those (mostly grazing rays) cost several times a packet lane; primary and bounce rays,
+/// whose octant runs are long, are not affected either way.
 pub(super) const GROUP: usize = 128;
 
 // A group's rays are numbered by `u8` in `trace_group`.

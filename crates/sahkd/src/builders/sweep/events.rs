@@ -105,8 +105,8 @@ pub(super) fn merge_in_place(list: &mut Vec<Event>, start: usize, b: &[Event]) {
 
 /// Sorts events whose primitive indices increase in input order, by position and kind only:
 /// a stable LSD radix sort on the upper 34 bits then yields the full (position, kind, prim)
-/// order. On the Dragon (1.7 M events per axis) the root's events are made and sorted in
-/// about 140 ms this way against about 200 ms with `sort_unstable`.
+/// order. Three counting passes over 34 bits cost less on a big root than a comparison sort's
+/// log n passes over the whole key.
 pub(super) fn sort_prim_ordered(events: &mut Vec<Event>, scratch: &mut Vec<Event>) {
     const DIGITS: [(u32, u32); 3] = [(ID_BITS, 11), (ID_BITS + 11, 11), (ID_BITS + 22, 12)];
     if events.len() < 256 {

@@ -97,7 +97,7 @@ fn split_merging<E: ListEntry>(
         return;
     };
     // The side an entry goes to is unpredictable on the axes not split, so the writes are
-    // chosen without a branch (4x faster measured on 8- to 64-reference nodes): an entry a
+    // chosen without a branch (a mispredicted branch per entry costs far more than a wasted store): an entry a
     // child does not get is written to a local instead, and the volatile write keeps the
     // compiler from turning the select back into a branch. Clipped entries are rare, so the
     // test for one due before the entry is well predicted.
