@@ -97,6 +97,7 @@ fn quick_check_passes_every_part_and_writes_its_three_files() {
         names,
         [
             "build",
+            "test-build",
             "loader",
             "adapter",
             "tests",
@@ -107,8 +108,9 @@ fn quick_check_passes_every_part_and_writes_its_three_files() {
     );
     for p in results["parts"].as_array().unwrap() {
         let (name, status) = (p["name"].as_str().unwrap(), p["status"].as_str().unwrap());
-        // build and tests are skipped on request (--binary, --no-tests); the rest must pass.
-        let expected = if name == "build" || name == "tests" {
+        // build, test-build and tests are skipped on request (--binary, --no-tests); the
+        // rest must pass.
+        let expected = if ["build", "test-build", "tests"].contains(&name) {
             "skipped"
         } else {
             "ok"
@@ -116,7 +118,7 @@ fn quick_check_passes_every_part_and_writes_its_three_files() {
         assert_eq!(status, expected, "{p}");
         assert!(p["seconds"].as_f64().is_some(), "{p}");
     }
-    for p in &results["parts"].as_array().unwrap()[4..] {
+    for p in &results["parts"].as_array().unwrap()[5..] {
         // Each bench part carries the bench's own results, built on the GPU.
         assert_eq!(p["result"]["settings"]["device"], "gpu", "{p}");
     }
@@ -167,4 +169,68 @@ fn bad_arguments_are_refused_with_one_clear_line() {
             text(&out.stderr)
         );
     }
+}
+
+/// The GPU tests are compiled before the tests part's clock starts: a compile longer than the
+/// tests' limit (a cold checkout on a small machine) must not time the tests out. A stand-in
+/// `cargo` first on the PATH takes 3 s to compile and none to run; the tests part has 2 s.
+#[test]
+fn the_gpu_tests_compile_before_the_tests_clock_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = dir.path().join("bin");
+    std::fs::create_dir(&bin).unwrap();
+    let calls = dir.path().join("calls.txt");
+    let cargo = bin.join("cargo");
+    std::fs::write(
+        &cargo,
+        format!(
+            "#!/bin/sh\necho \"$*\" >> '{}'\ncase \"$*\" in *--no-run*) sleep 3 ;; esac\nexit 0\n",
+            calls.display()
+        ),
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&cargo, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let out_dir = dir.path().join("out");
+    let path = format!(
+        "{}:{}",
+        bin.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let out = Command::new("bash")
+        .arg(script())
+        .args([
+            out_dir.to_str().unwrap(),
+            "--quick",
+            "--binary",
+            env!("CARGO_BIN_EXE_sahkd"),
+            "--part-limit",
+            "tests=2",
+            "--part-limit",
+            "bench-paper=1",
+            "--part-limit",
+            "bench-mount=1",
+            "--part-limit",
+            "bench-mount-large=1",
+        ])
+        .env("PATH", path)
+        .env("XDG_RUNTIME_DIR", "/tmp")
+        .output()
+        .unwrap();
+    let results = std::fs::read_to_string(out_dir.join("results.json"))
+        .unwrap_or_else(|e| panic!("no results.json ({e}): {}", text(&out.stdout)));
+    let results: Value = serde_json::from_str(&results).unwrap();
+    let parts = parts(&results);
+    let status = |name: &str| parts.iter().find(|p| p.0 == name).unwrap().1.clone();
+    assert_eq!(status("test-build"), "ok", "{results}");
+    assert_eq!(status("tests"), "ok", "{results}");
+    let calls = std::fs::read_to_string(&calls).unwrap();
+    assert_eq!(
+        calls.lines().collect::<Vec<_>>(),
+        [
+            "test -p sahkd-gpu --test kernels --no-run",
+            "test -p sahkd-gpu --test kernels"
+        ],
+        "{calls}"
+    );
 }
