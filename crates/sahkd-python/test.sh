@@ -21,7 +21,12 @@ py="$venv/bin/python"
 # trimesh's pure-Python ray intersector (the tests' reference) needs rtree; dask[distributed]
 # runs the sahkd.dask tests on a local cluster (they skip, saying so, where it is missing).
 "$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.9.4,<2" numpy pytest trimesh rtree \
-    "dask[distributed]>=2024"
+    "dask[distributed]>=2024" "mypy>=1.10,<2"
 (cd "$here" && VIRTUAL_ENV="$venv" nice -n 10 "$venv/bin/maturin" develop --release --quiet)
 cd "$here"
-exec "$py" -m pytest tests -q "$@"
+"$py" -m pytest tests -q "$@"
+# The stubs (python/sahkd/_sahkd.pyi) against the built module, and a typed program using
+# every call against the stubs; then the program itself, whose answers are checked.
+"$py" -m mypy.stubtest sahkd._sahkd
+"$py" -m mypy --strict typed/example.py
+"$py" typed/example.py
