@@ -106,7 +106,8 @@ impl sahkd_build_options {
     pub(crate) fn resolve(&self) -> Result<BuildOptions> {
         let full = size_of::<sahkd_build_options>();
         let known = self.size as usize;
-        if known < offset_of!(sahkd_build_options, algorithm) || known > full {
+        // Every field is 4 bytes, so a size from any version of the header is a multiple of 4.
+        if known < offset_of!(sahkd_build_options, algorithm) || known > full || known % 4 != 0 {
             return invalid(format!(
                 "options.size is {known}: set it with sahkd_build_options_default() \
                  (this library's sahkd_build_options has {full} bytes)"

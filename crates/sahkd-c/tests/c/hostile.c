@@ -107,6 +107,7 @@ int main(void) {
         {offsetof(sahkd_build_options, bins), (uint32_t)-5, "bins"},
         {offsetof(sahkd_build_options, max_depth), 61, "max_depth"},
         {offsetof(sahkd_build_options, size), sizeof options + 4, "size"},
+        {offsetof(sahkd_build_options, size), 6, "size"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         sahkd_build_options o;
