@@ -395,3 +395,26 @@ fn rays_the_library_refuses_are_errors_naming_the_row_and_part() {
     std::fs::write(&path, npy("(2, 8)", &data)).unwrap();
     succeeds(&["trace", "spd:sphere:200", "--rays", s(&path), "-o", s(&out)]);
 }
+
+// Memory limits: the address-space limit is part of the memory check ---------------------
+
+/// Under `prlimit --as=4000000000` a 300M-triangle scene aborted on its first large
+/// allocation (SIGABRT) on a machine whose MemAvailable could hold it.
+#[test]
+fn a_scene_beyond_the_address_space_limit_is_refused_up_front() {
+    let spec = "spd:sphere:300000000";
+    let out = match Command::new("prlimit")
+        .args(["--as=4000000000", env!("CARGO_BIN_EXE_sahkd"), "info", spec])
+        .output()
+    {
+        Ok(out) => out,
+        Err(e) => return eprintln!("skipped: no prlimit here ({e})"),
+    };
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 1, "{err}");
+    assert!(lines[0].starts_with("error: "), "{err}");
+    assert!(lines[0].contains("needs about"), "{err}");
+    assert!(lines[0].contains("GiB of memory"), "{err}");
+}
