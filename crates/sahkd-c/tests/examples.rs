@@ -10,17 +10,32 @@ use sahkd::{build, BuildOptions, KdTree, Mesh, Ray, Vec3};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::OnceLock;
 
-/// target/<profile>, where cargo put libsahkd.so and build.rs put sahkd.pc.
+/// target/<profile>, where cargo puts libsahkd.so and build.rs sahkd.pc. `cargo test` builds
+/// only what Rust links (not a cdylib), so the library is built here, once, with the test's
+/// own profile: the C programs always link the sources under test.
 fn lib_dir() -> PathBuf {
-    let exe = std::env::current_exe().unwrap();
-    let dir = exe.parent().unwrap().parent().unwrap().to_path_buf();
-    assert!(
-        dir.join("libsahkd.so").is_file() || dir.join("libsahkd.dylib").is_file(),
-        "no libsahkd in {}",
-        dir.display()
-    );
-    dir
+    static BUILT: OnceLock<PathBuf> = OnceLock::new();
+    BUILT
+        .get_or_init(|| {
+            let exe = std::env::current_exe().unwrap();
+            let dir = exe.parent().unwrap().parent().unwrap().to_path_buf();
+            let mut cargo = Command::new(std::env::var_os("CARGO").unwrap_or("cargo".into()));
+            cargo.args(["build", "--quiet", "-p", "sahkd-c"]);
+            if dir.file_name().is_some_and(|n| n == "release") {
+                cargo.arg("--release");
+            }
+            let status = cargo.status().expect("cannot run cargo");
+            assert!(status.success(), "cargo build -p sahkd-c failed");
+            assert!(
+                dir.join("libsahkd.so").is_file() || dir.join("libsahkd.dylib").is_file(),
+                "no libsahkd in {}",
+                dir.display()
+            );
+            dir
+        })
+        .clone()
 }
 
 /// The compile and link flags `pkg-config --cflags --libs sahkd` gives for this build.
