@@ -49,16 +49,6 @@ pub fn write_file(path: &Path, write: impl FnOnce(&mut File) -> io::Result<()>) 
         .with_context(|| format!("cannot write {}", path.display()))
 }
 
-/// Writes `path` whole or not at all through a writer that opens the path it is given.
-pub fn write_at(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    sahkd::output::write_atomically_at(path, write).map_err(|e| match e {
-        sahkd::output::AtomicError::Write(e) => e,
-        sahkd::output::AtomicError::Io(e) => {
-            anyhow::Error::new(e).context(format!("cannot write {}", path.display()))
-        }
-    })
-}
-
 /// Whether two paths name the same existing file (also through links).
 pub fn same_file(a: &Path, b: &Path) -> bool {
     let (Ok(ma), Ok(mb)) = (std::fs::metadata(a), std::fs::metadata(b)) else {

@@ -418,3 +418,43 @@ fn a_scene_beyond_the_address_space_limit_is_refused_up_front() {
     assert!(lines[0].contains("needs about"), "{err}");
     assert!(lines[0].contains("GiB of memory"), "{err}");
 }
+
+// Bench outputs: all or nothing ---------------------------------------------------------
+
+/// A bench whose outputs cannot all be written (here table1.png is taken by a folder; a full
+/// disk at a chart did the same) leaves none of its files, no temporary, and one plain
+/// error line naming the file.
+#[test]
+fn a_bench_failing_at_a_chart_leaves_none_of_its_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("results");
+    std::fs::create_dir_all(out.join("table1.png").join("taken")).unwrap();
+    let line = fails(
+        &[
+            "bench",
+            "spd:toys:300",
+            "--out",
+            s(&out),
+            "--algorithms",
+            "sweep",
+            "--threads",
+            "1",
+            "--repeat",
+            "1",
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--ao-size",
+            "4",
+            "--ao-samples",
+            "1",
+        ],
+        1,
+        &["table1.png"],
+    );
+    // The file itself is named, not a temporary beside it.
+    let named = format!("cannot write {}: ", out.join("table1.png").display());
+    assert!(line.contains(&named) && !line.contains("Error("), "{line}");
+    assert_eq!(entries(&out), ["table1.png"], "{line}");
+}

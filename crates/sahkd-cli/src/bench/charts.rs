@@ -23,6 +23,46 @@ fn register_fonts() {
     });
 }
 
+/// The RGB pixels of a chart before it is drawn.
+fn blank() -> Vec<u8> {
+    vec![0; SIZE.0 as usize * SIZE.1 as usize * 3]
+}
+
+/// A chart's pixels as a PNG file's bytes. Charts are drawn in memory and written by the
+/// caller, so a failure to write (a full disk) is a plain I/O error naming the file rather
+/// than the plotting backend's.
+fn png(pixels: Vec<u8>) -> Result<Vec<u8>> {
+    let image = image::RgbImage::from_raw(SIZE.0, SIZE.1, pixels)
+        .ok_or_else(|| anyhow!("a chart's pixels do not fill {}x{}", SIZE.0, SIZE.1))?;
+    let mut bytes = Vec::new();
+    image.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )?;
+    Ok(bytes)
+}
+
+/// Table 1's chart as PNG bytes (`path` names it in errors).
+pub fn table1(path: &Path, results: &Results) -> Result<Vec<u8>> {
+    let mut buffer = blank();
+    draw_table1(&mut buffer, path, results)?;
+    png(buffer)
+}
+
+/// Fig. 1's chart as PNG bytes.
+pub fn fig1(path: &Path, results: &Results) -> Result<Vec<u8>> {
+    let mut buffer = blank();
+    draw_fig1(&mut buffer, path, results)?;
+    png(buffer)
+}
+
+/// Fig. 2's chart as PNG bytes.
+pub fn fig2(path: &Path, results: &Results) -> Result<Vec<u8>> {
+    let mut buffer = blank();
+    draw_fig2(&mut buffer, path, results)?;
+    png(buffer)
+}
+
 fn failed(path: &Path) -> impl Fn(&dyn std::fmt::Display) -> anyhow::Error + '_ {
     move |e| anyhow!("cannot draw {}: {e}", path.display())
 }
@@ -82,7 +122,7 @@ fn colour(i: usize) -> RGBColor {
 
 /// Table 1 as grouped bars on a log scale: the paper's times on the left, this run's on the
 /// right, the same axis on both.
-pub fn table1(path: &Path, results: &Results) -> Result<()> {
+fn draw_table1(buffer: &mut [u8], path: &Path, results: &Results) -> Result<()> {
     register_fonts();
     let scenes = &results.scenes;
     let paper: Vec<Vec<Option<f64>>> = scenes
@@ -118,7 +158,7 @@ pub fn table1(path: &Path, results: &Results) -> Result<()> {
         })
         .collect();
 
-    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    let root = BitMapBackend::with_buffer(buffer, SIZE).into_drawing_area();
     draw!(path, root.fill(&WHITE));
     let root = draw!(
         path,
@@ -197,9 +237,9 @@ pub fn table1(path: &Path, results: &Results) -> Result<()> {
 }
 
 /// Fig. 1: P_n = (T_n - T_sort) / (T_1 - T_sort) for n = 1 .. 7 on the largest scene.
-pub fn fig1(path: &Path, results: &Results) -> Result<()> {
+fn draw_fig1(buffer: &mut [u8], path: &Path, results: &Results) -> Result<()> {
     register_fonts();
-    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    let root = BitMapBackend::with_buffer(buffer, SIZE).into_drawing_area();
     draw!(path, root.fill(&WHITE));
     let scene = results.levels.first().map_or("", |c| c.scene.as_str());
     let levels = results.settings.fig1_levels as f64;
@@ -269,7 +309,7 @@ pub fn fig1(path: &Path, results: &Results) -> Result<()> {
 
 /// Fig. 2: speed-up of each parallel builder on each scene against the smallest thread count,
 /// with the ideal line and the machine's core count marked.
-pub fn fig2(path: &Path, results: &Results) -> Result<()> {
+fn draw_fig2(buffer: &mut [u8], path: &Path, results: &Results) -> Result<()> {
     register_fonts();
     let s = &results.settings;
     let base = s.threads[0];
@@ -295,7 +335,7 @@ pub fn fig2(path: &Path, results: &Results) -> Result<()> {
         .fold(max_threads / base as f64, f64::max)
         * 1.1;
 
-    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    let root = BitMapBackend::with_buffer(buffer, SIZE).into_drawing_area();
     draw!(path, root.fill(&WHITE));
     let mut chart = draw!(
         path,

@@ -11,7 +11,6 @@ use crate::bench::{
 };
 use crate::input::{self, Loaded, MeshArg};
 use crate::options::{algorithm_name, AlgorithmArg, Builder, DeviceArg, Switch};
-use crate::output;
 use crate::progress::Progress;
 use anyhow::{bail, Context as _, Result};
 use indicatif::ProgressBar;
@@ -461,13 +460,49 @@ fn measure_levels(
 }
 
 /// Every file whole or not at all (`crate::output`).
+/// The files a run writes into its folder.
+const OUTPUTS: [&str; 5] = [
+    "results.json",
+    "table1.md",
+    "table1.png",
+    "fig1_levels.png",
+    "fig2_speedup.png",
+];
+
+/// Everything is made in memory first, then written into a hidden folder inside `out` and
+/// moved into place file by file: a failure part way (a full disk at a chart) leaves none of
+/// this run's files (the caller then removes the folders it created), and an earlier run's
+/// files are only replaced once all of these are written.
 fn write_outputs(out: &Path, results: &Results) -> Result<()> {
-    let write = |name: &str, bytes: &[u8]| output::write(&out.join(name), |w| w.write_all(bytes));
     let json = serde_json::to_string_pretty(results).context("cannot encode results.json")?;
-    write("results.json", json.as_bytes())?;
-    write("table1.md", table::markdown(results).as_bytes())?;
-    output::write_at(&out.join("table1.png"), |p| charts::table1(p, results))?;
-    output::write_at(&out.join("fig1_levels.png"), |p| charts::fig1(p, results))?;
-    output::write_at(&out.join("fig2_speedup.png"), |p| charts::fig2(p, results))?;
+    let contents: [Vec<u8>; 5] = [
+        json.into_bytes(),
+        table::markdown(results).into_bytes(),
+        charts::table1(&out.join(OUTPUTS[2]), results)?,
+        charts::fig1(&out.join(OUTPUTS[3]), results)?,
+        charts::fig2(&out.join(OUTPUTS[4]), results)?,
+    ];
+    let cannot = |name: &str| format!("cannot write {}", out.join(name).display());
+    let staging = tempfile::Builder::new()
+        .prefix(".sahkd-bench-")
+        .tempdir_in(out)
+        .with_context(|| cannot(OUTPUTS[0]))?;
+    for (name, bytes) in OUTPUTS.iter().zip(&contents) {
+        let write = || -> std::io::Result<()> {
+            let mut file = std::fs::File::create(staging.path().join(name))?;
+            std::io::Write::write_all(&mut file, bytes)?;
+            file.sync_all()
+        };
+        write().with_context(|| cannot(name))?;
+    }
+    for (i, name) in OUTPUTS.iter().enumerate() {
+        if let Err(e) = std::fs::rename(staging.path().join(name), out.join(name)) {
+            // None of the set stays: the ones already moved go too.
+            for moved in &OUTPUTS[..i] {
+                let _ = std::fs::remove_file(out.join(moved));
+            }
+            return Err(anyhow::Error::new(e).context(cannot(name)));
+        }
+    }
     Ok(())
 }
