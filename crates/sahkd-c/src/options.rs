@@ -103,6 +103,7 @@ impl From<&BuildOptions> for sahkd_build_options {
 
 impl sahkd_build_options {
     /// The library's options from the caller's struct, every field checked.
+    #[allow(clippy::field_reassign_with_default)]
     pub(crate) fn resolve(&self) -> Result<BuildOptions> {
         let full = size_of::<sahkd_build_options>();
         let known = self.size as usize;
@@ -144,32 +145,33 @@ impl sahkd_build_options {
             }
             b => Some(b as u32),
         };
-        let options = BuildOptions {
-            algorithm: value_of(
-                Algorithm::ALL,
-                Algorithm::NAMES,
-                o.algorithm,
-                "options.algorithm",
-            )?,
-            axes: value_of(Axes::ALL, Axes::NAMES, o.axes, "options.axes")?,
-            counting: value_of(
-                Counting::ALL,
-                Counting::NAMES,
-                o.counting,
-                "options.counting",
-            )?,
-            clip,
-            threads,
-            bins,
-            median_large_node: o.median_large_node,
-            cost: CostModel {
-                traversal: o.traversal_cost,
-                intersection: o.intersection_cost,
-                empty_bonus: o.empty_bonus,
-                leaf_size: o.leaf_size,
-                max_depth: (o.max_depth != 0).then_some(o.max_depth),
-                max_duplication: o.max_duplication,
-            },
+        // Field by field over the defaults, so that options the library adds later keep
+        // their defaults here until this struct grows a field for them.
+        let mut options = BuildOptions::default();
+        options.algorithm = value_of(
+            Algorithm::ALL,
+            Algorithm::NAMES,
+            o.algorithm,
+            "options.algorithm",
+        )?;
+        options.axes = value_of(Axes::ALL, Axes::NAMES, o.axes, "options.axes")?;
+        options.counting = value_of(
+            Counting::ALL,
+            Counting::NAMES,
+            o.counting,
+            "options.counting",
+        )?;
+        options.clip = clip;
+        options.threads = threads;
+        options.bins = bins;
+        options.median_large_node = o.median_large_node;
+        options.cost = CostModel {
+            traversal: o.traversal_cost,
+            intersection: o.intersection_cost,
+            empty_bonus: o.empty_bonus,
+            leaf_size: o.leaf_size,
+            max_depth: (o.max_depth != 0).then_some(o.max_depth),
+            max_duplication: o.max_duplication,
         };
         options.validate().or_else(|e| invalid(e.to_string()))?;
         Ok(options)
