@@ -458,3 +458,31 @@ fn a_bench_failing_at_a_chart_leaves_none_of_its_files() {
     assert!(line.contains(&named) && !line.contains("Error("), "{line}");
     assert_eq!(entries(&out), ["table1.png"], "{line}");
 }
+
+// A full disk while writing an archive: one error line, nothing from the zip writer -------
+
+/// Writing hits under a 1 KiB file-size limit (as a full disk does, the write fails with
+/// the archive half written) printed "ZipWriter drop failed: Io(...)" before the error
+/// line, on the same line. The limit's signal is ignored, so the write fails instead.
+#[test]
+fn a_failed_archive_write_is_one_error_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let rays = dir.path().join("rays.npy");
+    let data: Vec<f32> = (0..500).flat_map(|_| RAY).collect();
+    std::fs::write(&rays, npy("(500, 6)", &data)).unwrap();
+    let hits = dir.path().join("hits.npz");
+    let script = format!(
+        "trap '' XFSZ; ulimit -f 1; exec '{}' trace spd:sphere:200 --rays '{}' -o '{}'",
+        env!("CARGO_BIN_EXE_sahkd"),
+        s(&rays),
+        s(&hits)
+    );
+    let out = Command::new("bash").args(["-c", &script]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 1, "{err}");
+    assert!(lines[0].starts_with("error: cannot write"), "{err}");
+    assert!(!err.contains("ZipWriter"), "{err}");
+    assert_eq!(entries(dir.path()), ["rays.npy"], "no output, no temporary");
+}

@@ -83,6 +83,33 @@ pub fn saved(builder: &mut Builder, loaded: &mut Loaded) -> Option<Build> {
     })
 }
 
+/// The archive [`write_npz`] hands its caller.
+pub type Npz<'a> = NpzWriter<std::io::BufWriter<&'a mut std::fs::File>>;
+
+/// Writes `path` as an .npz archive, whole or not at all; `arrays` adds the arrays. The
+/// archive is finished here so that an error doing so is reported. After any error the zip
+/// writer is forgotten rather than dropped: dropped, it would try to finish the archive
+/// again, fail again and print its own message beside the error (`write_file` removes the
+/// temporary file, and the process ends with the error).
+pub fn write_npz(
+    path: &std::path::Path,
+    arrays: impl FnOnce(&mut Npz) -> std::io::Result<()>,
+) -> anyhow::Result<()> {
+    crate::output::write_file(path, |file| {
+        let mut npz = NpzWriter::new(std::io::BufWriter::new(file));
+        let finished = arrays(&mut npz).and_then(|()| {
+            npz.zip_writer()
+                .finish()
+                .map_err(std::io::Error::other)
+                .and_then(|mut file| std::io::Write::flush(&mut file))
+        });
+        if finished.is_err() {
+            std::mem::forget(npz);
+        }
+        finished
+    })
+}
+
 /// One array of the given shape, stored uncompressed as `np.savez` does.
 pub fn write_array<T, W>(
     npz: &mut NpzWriter<W>,

@@ -7,15 +7,12 @@ use super::Context;
 use crate::format;
 use crate::input::MeshArg;
 use crate::options::BuilderArgs;
-use crate::output;
 use crate::progress::Progress;
 use crate::rays;
 use crate::resident::PeakResident;
 use anyhow::Result;
-use npyz::npz::NpzWriter;
 use sahkd::{ClosestPoint, InsideTest, KdTree, Vec3};
 use serde::Serialize;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -205,8 +202,7 @@ fn no_distance(p: &Vec3) -> f64 {
 }
 
 fn write_answers(path: &Path, points: &[Vec3], answers: &[Answer], signed: bool) -> Result<()> {
-    output::write_file(path, |file| {
-        let mut npz = NpzWriter::new(BufWriter::new(file));
+    common::write_npz(path, |npz| {
         let n = answers.len();
         let point = answers
             .iter()
@@ -218,9 +214,9 @@ fn write_answers(path: &Path, points: &[Vec3], answers: &[Answer], signed: bool)
         let prim = answers
             .iter()
             .map(|a| a.0.map_or(-1, |c| i64::from(c.prim)));
-        write_array(&mut npz, "point", &[n as u64, 3], point)?;
-        write_array(&mut npz, "distance", &[n as u64], distance)?;
-        write_array(&mut npz, "prim", &[n as u64], prim)?;
+        write_array(npz, "point", &[n as u64, 3], point)?;
+        write_array(npz, "distance", &[n as u64], distance)?;
+        write_array(npz, "prim", &[n as u64], prim)?;
         if signed {
             let inside = answers.iter().map(|a| a.1 == Some(true));
             let signed = answers.iter().zip(points).map(|(a, p)| match a.0 {
@@ -228,11 +224,9 @@ fn write_answers(path: &Path, points: &[Vec3], answers: &[Answer], signed: bool)
                 Some(c) => c.distance,
                 None => no_distance(p),
             });
-            write_array(&mut npz, "signed_distance", &[n as u64], signed)?;
-            write_array(&mut npz, "inside", &[n as u64], inside)?;
+            write_array(npz, "signed_distance", &[n as u64], signed)?;
+            write_array(npz, "inside", &[n as u64], inside)?;
         }
-        // Dropping the writers would finish the archive but swallow any error doing so.
-        let mut file = npz.zip_writer().finish()?;
-        file.flush()
+        Ok(())
     })
 }

@@ -5,15 +5,12 @@ use super::Context;
 use crate::format;
 use crate::input::MeshArg;
 use crate::options::BuilderArgs;
-use crate::output;
 use crate::progress::Progress;
 use crate::rays;
 use crate::resident::PeakResident;
 use anyhow::Result;
-use npyz::npz::NpzWriter;
 use sahkd::{Hit, Hit64, KdTree, Ray, Ray64};
 use serde::Serialize;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -208,33 +205,30 @@ fn trace(
 }
 
 fn write_hits(path: &Path, hits: &Hits) -> Result<()> {
-    output::write_file(path, |file| {
-        let mut npz = NpzWriter::new(BufWriter::new(file));
+    common::write_npz(path, |npz| {
         match hits {
             Hits::Closest(h) => {
                 let t = h.iter().map(|h| h.map_or(f32::INFINITY, |h| h.t));
                 let prim = h.iter().map(|h| h.map_or(-1, |h| i64::from(h.prim)));
                 let u = h.iter().map(|h| h.map_or(0.0, |h| h.u));
                 let v = h.iter().map(|h| h.map_or(0.0, |h| h.v));
-                write_array(&mut npz, "t", &[h.len() as u64], t)?;
-                write_array(&mut npz, "prim", &[h.len() as u64], prim)?;
-                write_array(&mut npz, "u", &[h.len() as u64], u)?;
-                write_array(&mut npz, "v", &[h.len() as u64], v)?;
+                write_array(npz, "t", &[h.len() as u64], t)?;
+                write_array(npz, "prim", &[h.len() as u64], prim)?;
+                write_array(npz, "u", &[h.len() as u64], u)?;
+                write_array(npz, "v", &[h.len() as u64], v)?;
             }
             Hits::Closest64(h) => {
                 let t = h.iter().map(|h| h.map_or(f64::INFINITY, |h| h.t));
                 let prim = h.iter().map(|h| h.map_or(-1, |h| i64::from(h.prim)));
                 let u = h.iter().map(|h| h.map_or(0.0, |h| h.u));
                 let v = h.iter().map(|h| h.map_or(0.0, |h| h.v));
-                write_array(&mut npz, "t", &[h.len() as u64], t)?;
-                write_array(&mut npz, "prim", &[h.len() as u64], prim)?;
-                write_array(&mut npz, "u", &[h.len() as u64], u)?;
-                write_array(&mut npz, "v", &[h.len() as u64], v)?;
+                write_array(npz, "t", &[h.len() as u64], t)?;
+                write_array(npz, "prim", &[h.len() as u64], prim)?;
+                write_array(npz, "u", &[h.len() as u64], u)?;
+                write_array(npz, "v", &[h.len() as u64], v)?;
             }
-            Hits::Any(h) => write_array(&mut npz, "hit", &[h.len() as u64], h.iter().copied())?,
+            Hits::Any(h) => write_array(npz, "hit", &[h.len() as u64], h.iter().copied())?,
         }
-        // Dropping the writers would finish the archive but swallow any error doing so.
-        let mut file = npz.zip_writer().finish()?;
-        file.flush()
+        Ok(())
     })
 }
