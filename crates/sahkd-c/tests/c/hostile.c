@@ -340,6 +340,126 @@ int main(void) {
     EXPECT(closest.geometry == 1 && closest.distance == 1.0);
     sahkd_scene_tree_free(built);
 
+    /* A closed unit cube, wound outwards: inside tests, signed distances, winding numbers,
+     * every array call on the calling thread and on every core alike. */
+    {
+        const float cube_v[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0,
+                                0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1};
+        const uint32_t cube_f[] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
+                                   3, 7, 6, 3, 6, 2, 0, 4, 7, 0, 7, 3, 1, 2, 6, 1, 6, 5};
+        sahkd_mesh *cube_mesh = NULL;
+        sahkd_tree *cube = NULL;
+        OK(sahkd_mesh_new(cube_v, 8, cube_f, 12, &cube_mesh));
+        OK(sahkd_tree_build(cube_mesh, NULL, &cube));
+        /* Inside at the centre, outside beyond a face; every point 0.5 from the surface. */
+        const float pts[2][4] = {{0.5f, 0.5f, 0.5f, 0}, {0.5f, 0.5f, 1.5f, 0}};
+        for (uint32_t flags = 0; flags <= SAHKD_QUERY_PARALLEL; flags++) {
+            for (uint32_t test = SAHKD_INSIDE_PARITY; test <= SAHKD_INSIDE_WINDING; test++) {
+                double sd[2] = {0, 0};
+                bool in[2] = {false, true};
+                OK(sahkd_tree_signed_distance(cube, &pts[0][0], 2, sizeof pts[0], test, sd, 0,
+                                              flags));
+                OK(sahkd_tree_contains(cube, &pts[0][0], 2, sizeof pts[0], test, in, 0, flags));
+                EXPECT(sd[0] == -0.5 && sd[1] == 0.5 && in[0] && !in[1]);
+            }
+            double w[2] = {0, 0};
+            OK(sahkd_tree_winding_number(cube, &pts[0][0], 2, sizeof pts[0], w, 0, flags));
+            EXPECT(fabs(w[0] - 1.0) < 1e-9 && fabs(w[1]) < 1e-9);
+            sahkd_closest c[2];
+            OK(sahkd_tree_closest_point(cube, &pts[0][0], 2, sizeof pts[0], c, 0, flags));
+            EXPECT(c[0].distance == 0.5 && c[1].distance == 0.5 && c[1].point[2] == 1.0);
+        }
+        /* A ray along x through the cube's middle crosses two faces; one stopping inside,
+         * one. Every hit array and count agrees with the one-ray calls. */
+        sahkd_ray through[3] = {{{-1, 0.3f, 0.6f}, 0, {1, 0, 0}, INFINITY},
+                                {{-1, 0.3f, 0.6f}, 0, {1, 0, 0}, 1.5f},
+                                {{-1, 5, 5}, 0, {1, 0, 0}, INFINITY}};
+        uint32_t counts[3];
+        size_t offsets[4], total = 0;
+        sahkd_hit flat[4];
+        for (uint32_t flags = 0; flags <= SAHKD_QUERY_PARALLEL; flags++) {
+            OK(sahkd_tree_count_hits_aos(cube, through, 3, 0, counts, 0, flags));
+            EXPECT(counts[0] == 2 && counts[1] == 1 && counts[2] == 0);
+            EXPECT_ERR(sahkd_tree_all_hits_aos(cube, through, 3, 0, flat, 2, offsets, &total,
+                                               flags),
+                       SAHKD_ERROR_BUFFER_TOO_SMALL, "3");
+            EXPECT(total == 3 && offsets[3] == 3);
+            OK(sahkd_tree_all_hits_aos(cube, through, 3, 0, flat, 4, offsets, &total, flags));
+            EXPECT(total == 3 && offsets[0] == 0 && offsets[1] == 2 && offsets[2] == 3 &&
+                   offsets[3] == 3);
+            EXPECT(flat[0].t == 1.0f && flat[1].t == 2.0f && flat[2].t == 1.0f);
+            EXPECT(flat[0].prim == flat[2].prim && flat[0].prim != flat[1].prim);
+        }
+        for (int i = 0; i < 3; i++) {
+            sahkd_hit one[4];
+            size_t n = 0;
+            uint32_t k = 0;
+            OK(sahkd_tree_all_hits(cube, &through[i], one, 4, &n));
+            OK(sahkd_tree_count_hits(cube, &through[i], &k));
+            EXPECT(n == counts[i] && k == counts[i]);
+            EXPECT(n == 0 || memcmp(one, &flat[offsets[i]], n * sizeof one[0]) == 0);
+        }
+        /* Occlusion from separate arrays. */
+        float ox[3], oy[3], oz[3], dx[3], dy[3], dz[3], tmax[3];
+        for (int i = 0; i < 3; i++) {
+            ox[i] = through[i].origin[0], oy[i] = through[i].origin[1];
+            oz[i] = through[i].origin[2], dx[i] = through[i].direction[0];
+            dy[i] = through[i].direction[1], dz[i] = through[i].direction[2];
+            tmax[i] = i == 1 ? 0.5f : INFINITY; /* stops before the cube */
+        }
+        sahkd_rays_soa columns = {ox, oy, oz, dx, dy, dz, NULL, tmax, 0};
+        bool blocked[3] = {false, true, true};
+        OK(sahkd_tree_occluded_soa(cube, &columns, 3, blocked, 0, SAHKD_QUERY_PARALLEL));
+        EXPECT(blocked[0] && !blocked[1] && !blocked[2]);
+
+        /* Two cubes in a scene, the second moved 3 along x: arrays name the geometry. */
+        sahkd_scene *two = NULL;
+        uint32_t first = 0, second = 0;
+        const double move[12] = {1, 0, 0, 3, 0, 1, 0, 0, 0, 0, 1, 0};
+        OK(sahkd_scene_new(&two));
+        OK(sahkd_scene_add_mesh(two, cube_mesh, &first));
+        OK(sahkd_scene_add_instance(two, first, move, &second));
+        size_t geometries = 0;
+        OK(sahkd_scene_count(two, &geometries));
+        EXPECT(geometries == 2);
+        sahkd_scene_tree *both = NULL;
+        OK(sahkd_scene_build(two, NULL, &both));
+        sahkd_scene_free(two);
+        sahkd_ray pair[2] = {{{-1, 0.5f, 0.5f}, 0, {1, 0, 0}, INFINITY},
+                             {{10, 0.5f, 0.5f}, 0, {-1, 0, 0}, INFINITY}};
+        sahkd_hit found[2];
+        bool any[2] = {false, false};
+        OK(sahkd_scene_tree_intersect_aos(both, pair, 2, 0, found, 0, SAHKD_QUERY_PARALLEL));
+        EXPECT(found[0].geometry == 0 && found[0].t == 1.0f);
+        EXPECT(found[1].geometry == 1 && found[1].t == 6.0f);
+        uint32_t geometry_ids[2];
+        float ts[2];
+        sahkd_rays_soa pair_soa = {&pair[0].origin[0], &pair[0].origin[1], &pair[0].origin[2],
+                                   &pair[0].direction[0], &pair[0].direction[1],
+                                   &pair[0].direction[2], &pair[0].t_min, &pair[0].t_max,
+                                   sizeof pair[0]};
+        sahkd_hits_soa pair_hits = {ts, NULL, NULL, NULL, geometry_ids, 0};
+        OK(sahkd_scene_tree_intersect_soa(both, &pair_soa, 2, &pair_hits, 0));
+        EXPECT(ts[0] == 1.0f && ts[1] == 6.0f && geometry_ids[0] == 0 && geometry_ids[1] == 1);
+        OK(sahkd_scene_tree_occluded_aos(both, pair, 2, 0, any, 0, 0));
+        EXPECT(any[0] && any[1]);
+        any[0] = any[1] = false;
+        OK(sahkd_scene_tree_occluded_soa(both, &pair_soa, 2, any, 0, 0));
+        EXPECT(any[0] && any[1]);
+        OK(sahkd_scene_tree_occluded(both, &pair[0], &flag));
+        EXPECT(flag);
+        const float mid[3] = {3.5f, 0.5f, 0.5f};
+        double d = 0, s = 0;
+        bool inside = false;
+        OK(sahkd_scene_tree_distance(both, mid, 1, 0, &d, 0, 0));
+        OK(sahkd_scene_tree_signed_distance(both, mid, 1, 0, SAHKD_INSIDE_PARITY, &s, 0, 0));
+        OK(sahkd_scene_tree_contains(both, mid, 1, 0, SAHKD_INSIDE_WINDING, &inside, 0, 0));
+        EXPECT(d == 0.5 && s == -0.5 && inside);
+        sahkd_scene_tree_free(both);
+        sahkd_tree_free(cube);
+        sahkd_mesh_free(cube_mesh);
+    }
+
     /* Statuses have names; the last error belongs to the thread that failed. */
     EXPECT(strcmp(sahkd_status_name(SAHKD_ERROR_NULL), "SAHKD_ERROR_NULL") == 0);
     EXPECT(strcmp(sahkd_status_name(99), "unknown status") == 0);
