@@ -425,7 +425,8 @@ impl Rng {
 }
 
 /// Rays from around the unit sphere toward points near it (most hit, some miss), plus
-/// awkward ones: from the centre, axis-parallel, zero direction, NaN origin.
+/// awkward ones: from the centre, axis-parallel, zero direction (a NaN origin is refused, as
+/// `rays_the_library_refuses_...` in tests/reliability.rs checks).
 fn ray_rows(count: usize, with_range: bool) -> Vec<[f32; 8]> {
     let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
     let mut rows = Vec::with_capacity(count + 4);
@@ -445,7 +446,6 @@ fn ray_rows(count: usize, with_range: bool) -> Vec<[f32; 8]> {
     rows.push([0.0, 0.0, 0.0, 0.3, -0.2, 0.9, 0.0, inf]);
     rows.push([0.1, 0.2, -5.0, 0.0, 0.0, 1.0, 0.0, inf]);
     rows.push([0.1, 0.2, -5.0, 0.0, 0.0, 0.0, 0.0, inf]);
-    rows.push([f32::NAN, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, inf]);
     // An empty range.
     rows.push([0.0, 0.0, -5.0, 0.0, 0.0, 1.0, 3.0, 2.0]);
     if !with_range {
@@ -679,7 +679,7 @@ fn trace_summary_goes_to_stderr_unless_quiet() {
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(out.stdout.is_empty());
     let err = stderr(&out);
-    assert!(err.contains("Mrays/s") && err.contains("55 rays"), "{err}");
+    assert!(err.contains("Mrays/s") && err.contains("54 rays"), "{err}");
     let mut quiet = args.to_vec();
     quiet.push("--quiet");
     let out = sahkd(&quiet);
