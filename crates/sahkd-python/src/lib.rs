@@ -10,12 +10,13 @@ mod batch;
 mod columns;
 mod options;
 mod pool;
+mod rays;
 mod scene;
 
 use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 
-use columns::{per_point, ClosestColumns, HitColumns};
+use columns::{per_point, ClosestColumns};
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -389,19 +390,9 @@ impl PyKdTree {
         t_max: Option<&Bound<'py, PyAny>>,
         precision: &str,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let pool = self.pool()?;
-        let hits = namedtuple(py, &HITS, "Hits")?;
-        if is_f64(precision)? {
-            let rays = ray_args64(origins, directions, t_min, t_max)?;
-            let columns = py.detach(|| {
-                let found = pool.install(|| self.tree.intersect_batch_f64(&rays));
-                HitColumns::new(&found, f64::INFINITY, 0.0, |h| (h.t, h.prim, h.u, h.v))
-            });
-            return hits.call1(columns.into_tuple(py)?);
-        }
-        let input = ray_input(origins, directions, t_min, t_max)?;
-        let columns = traced(py, &input, |rays| batch::closest(&self.tree, rays, &pool))?;
-        hits.call1(columns.into_tuple(py)?)
+        let rays = rays::Rays::read(origins, directions, t_min, t_max, precision)?;
+        let columns = rays::closest(py, &self.tree, &rays, &*self.pool()?)?;
+        namedtuple(py, &HITS, "Hits")?.call1(columns)
     }
 
     /// Whether each ray hits anything with t_min <= t <= t_max, as a bool array (each ray
@@ -416,16 +407,8 @@ impl PyKdTree {
         t_max: Option<&Bound<'py, PyAny>>,
         precision: &str,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        if is_f64(precision)? {
-            let rays = ray_args64(origins, directions, t_min, t_max)?;
-            let pool = self.pool()?;
-            let hit = py.detach(|| pool.install(|| self.tree.occluded_batch_f64(&rays)));
-            return Ok(PyArray1::from_vec(py, hit));
-        }
-        let input = ray_input(origins, directions, t_min, t_max)?;
-        let pool = self.pool()?;
-        let hit = traced(py, &input, |rays| batch::occluded(&self.tree, rays, &pool))?;
-        Ok(PyArray1::from_vec(py, hit))
+        let rays = rays::Rays::read(origins, directions, t_min, t_max, precision)?;
+        rays::occluded(py, &self.tree, &rays, &*self.pool()?)
     }
 
     /// How many faces each ray hits with t_min <= t <= t_max (int64), each face once. A ray

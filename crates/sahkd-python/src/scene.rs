@@ -15,9 +15,9 @@ use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyType};
 use sahkd::scene::{Scene, SceneTree, Transform};
 
-use crate::columns::{per_point, ClosestColumns, HitColumns};
-use crate::{arrays, inside_arg, is_f64, namedtuple, options, pool_of, threads_arg};
-use crate::{batch, ray_args64, ray_input, traced};
+use crate::columns::{per_point, ClosestColumns};
+use crate::rays::{self, Rays};
+use crate::{arrays, inside_arg, namedtuple, options, pool_of, threads_arg};
 
 static SCENE_HITS: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static SCENE_CLOSEST: PyOnceLock<Py<PyType>> = PyOnceLock::new();
@@ -228,26 +228,10 @@ impl PyScene {
         t_max: Option<&Bound<'py, PyAny>>,
         precision: &str,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let f64_walk = is_f64(precision)?;
+        let rays = Rays::read(origins, directions, t_min, t_max, precision)?;
         let built = self.built()?;
-        let pool = pool_of(built.threads)?;
-        let tree = &built.tree;
-        let hits = namedtuple(py, &SCENE_HITS, "SceneHits")?;
-        if f64_walk {
-            let rays = ray_args64(origins, directions, t_min, t_max)?;
-            let columns = py.detach(|| {
-                let found = pool.install(|| tree.intersect_batch_f64(&rays));
-                HitColumns::new(&found, f64::INFINITY, 0.0, |h| (h.t, h.prim, h.u, h.v))
-                    .and_geometry(&found, |h| h.geometry)
-            });
-            return hits.call1(columns.into_tuple(py)?);
-        }
-        let input = ray_input(origins, directions, t_min, t_max)?;
-        let columns = traced(py, &input, |rays| {
-            let columns = batch::closest(tree.tree(), rays, &pool)?;
-            Some(pool.install(|| columns.in_scene(tree)))
-        })?;
-        hits.call1(columns.into_tuple(py)?)
+        let columns = rays::closest(py, &built.tree, &rays, &*pool_of(built.threads)?)?;
+        namedtuple(py, &SCENE_HITS, "SceneHits")?.call1(columns)
     }
 
     /// Whether each ray hits any geometry with t_min <= t <= t_max, as a bool array;
@@ -262,18 +246,9 @@ impl PyScene {
         t_max: Option<&Bound<'py, PyAny>>,
         precision: &str,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let f64_walk = is_f64(precision)?;
+        let rays = Rays::read(origins, directions, t_min, t_max, precision)?;
         let built = self.built()?;
-        let pool = pool_of(built.threads)?;
-        let tree = &built.tree;
-        let hit = if f64_walk {
-            let rays = ray_args64(origins, directions, t_min, t_max)?;
-            py.detach(|| pool.install(|| tree.occluded_batch_f64(&rays)))
-        } else {
-            let input = ray_input(origins, directions, t_min, t_max)?;
-            traced(py, &input, |rays| batch::occluded(tree.tree(), rays, &pool))?
-        };
-        Ok(PyArray1::from_vec(py, hit))
+        rays::occluded(py, &built.tree, &rays, &*pool_of(built.threads)?)
     }
 
     /// SceneClosest(point, distance, prim, geometry_id): KdTree.closest_point's answer over
