@@ -132,7 +132,9 @@ typedef struct sahkd_build_options {
 } sahkd_build_options;
 
 // A ray origin + t * direction for t in [t_min, t_max] (t_max = INFINITY: unbounded).
-// Rays with a zero or non-finite direction, a NaN origin or t_min > t_max hit nothing.
+// The library's rule for rays given as input: every coordinate and t_min finite, t_max not
+// NaN; a call given a ray that breaks it fails with SAHKD_ERROR_INVALID_ARGUMENT naming the
+// ray and the part. A zero direction or t_min > t_max is a ray that hits nothing.
 typedef struct sahkd_ray {
   float origin[3];
   float t_min;

@@ -21,7 +21,9 @@ pub const SAHKD_INSIDE_PARITY: u32 = 0;
 pub const SAHKD_INSIDE_WINDING: u32 = 1;
 
 /// A ray origin + t * direction for t in [t_min, t_max] (t_max = INFINITY: unbounded).
-/// Rays with a zero or non-finite direction, a NaN origin or t_min > t_max hit nothing.
+/// The library's rule for rays given as input: every coordinate and t_min finite, t_max not
+/// NaN; a call given a ray that breaks it fails with SAHKD_ERROR_INVALID_ARGUMENT naming the
+/// ray and the part. A zero direction or t_min > t_max is a ray that hits nothing.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct sahkd_ray {
@@ -286,13 +288,23 @@ fn ray_of(r: &sahkd_ray) -> Ray {
     Ray::new(Vec3(r.origin), Vec3(r.direction)).with_range(r.t_min, r.t_max)
 }
 
+/// `ray` if the library's rule for input rays takes it, else an error naming it and the part.
+fn checked(ray: Ray, what: impl FnOnce() -> String) -> Result<Ray> {
+    match ray.input_problem() {
+        None => Ok(ray),
+        Some((part, why)) => invalid(format!("{}: {} is {why}", what(), part.name())),
+    }
+}
+
 unsafe fn one_ray(ray: *const sahkd_ray) -> Result<Ray> {
-    Ok(ray_of(get(ray, "ray")?))
+    checked(ray_of(get(ray, "ray")?), || "ray".into())
 }
 
 unsafe fn aos_rays(rays: *const sahkd_ray, count: usize, stride: usize) -> Result<Vec<Ray>> {
     let rays = Strided::new(rays, count, stride, "rays")?;
-    Ok((0..count).map(|i| ray_of(&rays.read(i))).collect())
+    (0..count)
+        .map(|i| checked(ray_of(&rays.read(i)), || format!("rays[{i}]")))
+        .collect()
 }
 
 unsafe fn soa_rays(soa: *const sahkd_rays_soa, count: usize) -> Result<Vec<Ray>> {
@@ -310,20 +322,30 @@ unsafe fn soa_rays(soa: *const sahkd_rays_soa, count: usize) -> Result<Vec<Ray>>
     ];
     let t_min = Strided::optional(s.t_min, count, s.stride, "rays->t_min")?;
     let t_max = Strided::optional(s.t_max, count, s.stride, "rays->t_max")?;
-    Ok((0..count)
+    (0..count)
         .map(|i| {
             let xyz = |c: &[Strided<f32>; 3]| Vec3([c[0].read(i), c[1].read(i), c[2].read(i)]);
-            Ray::new(xyz(&o), xyz(&d)).with_range(
+            let ray = Ray::new(xyz(&o), xyz(&d)).with_range(
                 t_min.map_or(0.0, |t| t.read(i)),
                 t_max.map_or(f32::INFINITY, |t| t.read(i)),
-            )
+            );
+            checked(ray, || format!("rays[{i}]"))
         })
-        .collect())
+        .collect()
 }
 
+/// Query points: every coordinate must be finite, as for rays.
 unsafe fn points(p: *const f32, count: usize, stride: usize) -> Result<Vec<Vec3>> {
     let p = Strided::new(p.cast::<[f32; 3]>(), count, stride, "points")?;
-    Ok((0..count).map(|i| Vec3(p.read(i))).collect())
+    (0..count)
+        .map(|i| match Vec3(p.read(i)) {
+            v if v.is_finite() => Ok(v),
+            v => invalid(format!(
+                "points[{i}] = ({}, {}, {}) is not finite",
+                v[0], v[1], v[2]
+            )),
+        })
+        .collect()
 }
 
 /// Writes `values` to a strided output array.

@@ -246,6 +246,26 @@ int main(void) {
                SAHKD_ERROR_INVALID_ARGUMENT, "inside");
     EXPECT_ERR(sahkd_tree_closest_point(tree, point, 1, 0, NULL, 0, 0), SAHKD_ERROR_NULL, "out");
 
+    /* The library's rule for input rays and points: non-finite parts are refused, named. */
+    sahkd_ray nan_origin = ray_up(NAN, 0.5f);
+    EXPECT_ERR(sahkd_tree_intersect(tree, &nan_origin, &hit), SAHKD_ERROR_INVALID_ARGUMENT,
+               "origin");
+    sahkd_ray bad_rays[2] = {ray_up(0.25f, 0.5f), ray_up(0.25f, 0.5f)};
+    bad_rays[1].t_max = NAN;
+    EXPECT_ERR(sahkd_tree_occluded_aos(tree, bad_rays, 2, 0, &flag, 0, 0),
+               SAHKD_ERROR_INVALID_ARGUMENT, "rays[1]: t_max is NaN");
+    bad_rays[1].t_max = INFINITY;
+    bad_rays[1].t_min = -INFINITY;
+    EXPECT_ERR(sahkd_tree_count_hits_aos(tree, bad_rays, 2, 0, &hits_count, 0, 0),
+               SAHKD_ERROR_INVALID_ARGUMENT, "t_min");
+    sahkd_ray empty = ray_up(0.25f, 0.5f);
+    empty.t_min = 2.0f; /* an empty range hits nothing: not an error */
+    OK(sahkd_tree_intersect(tree, &empty, &hit));
+    EXPECT(hit.prim == SAHKD_INVALID_ID);
+    const float far_point[3] = {0, INFINITY, 0};
+    EXPECT_ERR(sahkd_tree_distance(tree, far_point, 1, 0, &distance, 0, 0),
+               SAHKD_ERROR_INVALID_ARGUMENT, "points[0]");
+
     /* AoS with strides, SoA with strides and the single-ray call agree. */
     OK(sahkd_tree_intersect_aos(tree, rays, 8, 0, hits, 0, SAHKD_QUERY_PARALLEL));
     struct padded {
