@@ -5,19 +5,27 @@
 
 use crate::gpu::GpuReport;
 use anyhow::{Context, Result};
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, ValueEnum};
-use sahkd::{Algorithm, Axes, Build, BuildOptions, CostModel, Counting, Mesh};
+use sahkd::{Algorithm, Axes, Build, BuildOptions, CostModel, Counting, Mesh, Preset};
 use std::fmt;
+use std::str::FromStr;
 
-fn default_options() -> BuildOptions {
-    BuildOptions::default()
+/// A value of one of the library's named types, by the library's names (`NAMES`, `FromStr`):
+/// the help lists them and a bad name is a usage error listing them.
+pub fn named<T>(names: &'static [&'static str]) -> impl TypedValueParser<Value = T>
+where
+    T: FromStr + Clone + Send + Sync + 'static,
+    T::Err: fmt::Debug,
+{
+    PossibleValuesParser::new(names.iter().copied()).map(|s: String| {
+        s.parse::<T>()
+            .expect("the parser only lets the library's own names through")
+    })
 }
 
-fn default_cost() -> CostModel {
-    CostModel::default()
-}
-
-/// How to build a tree: which builder, which candidates, the cost model and the threads.
+/// How to build a tree: a preset, and any of its options overridden; the threads. Every
+/// option left out takes the preset's value (`balanced` without `--preset`).
 #[derive(Args, Clone, Debug)]
 #[command(next_help_heading = "Builder options")]
 pub struct BuilderArgs {
@@ -26,35 +34,39 @@ pub struct BuilderArgs {
     #[arg(long, value_enum, value_name = "DEVICE", default_value_t = DeviceArg::Cpu)]
     pub device: DeviceArg,
 
-    /// Tree builder [default: hybrid; level with --device gpu]
-    #[arg(long, value_enum, value_name = "NAME")]
-    pub algorithm: Option<AlgorithmArg>,
+    /// Named options, by how many rays the tree will trace: fast, balanced (the default),
+    /// quality; paper (the paper's level builder) and sweep (the serial reference). The
+    /// options below, when given, override the preset's
+    #[arg(long, value_name = "NAME", value_parser = named::<Preset>(Preset::NAMES))]
+    pub preset: Option<Preset>,
 
-    /// Axes a node's split candidates come from
-    #[arg(long, value_enum, value_name = "WHICH",
-          default_value_t = default_options().axes.into())]
-    pub axes: AxesArg,
+    /// Tree builder [default: the preset's; level with --device gpu]
+    #[arg(long, value_name = "NAME", value_parser = named::<Algorithm>(Algorithm::NAMES))]
+    pub algorithm: Option<Algorithm>,
 
-    /// How the level builder counts primitives on each side of a candidate
-    #[arg(long, value_enum, value_name = "HOW",
-          default_value_t = default_options().counting.into())]
-    pub counting: CountingArg,
+    /// Axes a node's split candidates come from [default: the preset's]
+    #[arg(long, value_name = "WHICH", value_parser = named::<Axes>(Axes::NAMES))]
+    pub axes: Option<Axes>,
 
-    /// Clip straddling triangles to each child (perfect splits)
-    #[arg(long, value_enum, value_name = "ON|OFF",
-          default_value_t = default_options().clip.into())]
-    pub clip: Switch,
+    /// How the level builder counts primitives on each side of a candidate [default: the
+    /// preset's]
+    #[arg(long, value_name = "HOW", value_parser = named::<Counting>(Counting::NAMES))]
+    pub counting: Option<Counting>,
+
+    /// Clip straddling triangles to each child (perfect splits) [default: the preset's]
+    #[arg(long, value_enum, value_name = "ON|OFF")]
+    pub clip: Option<Switch>,
 
     /// Median builder: nodes with more triangles than this are split at the spatial median
-    /// (or cut off empty space); smaller ones get exact SAH
-    #[arg(long, value_name = "N", allow_negative_numbers = true,
-          default_value_t = default_options().median_large_node)]
-    pub large_node: u32,
+    /// (or cut off empty space); smaller ones get exact SAH [default: the preset's]
+    #[arg(long, value_name = "N", allow_negative_numbers = true)]
+    pub large_node: Option<u32>,
 
     /// Sweep and hybrid builders: price nodes of more than 64 x N triangle references at the
     /// N - 1 boundaries of N equal bins (min-max binning), the others exactly; 0 prices every
-    /// node exactly [default: 256 for hybrid, 0 for sweep]
-    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = parse_bins)]
+    /// node exactly [default: the preset's; 256 for hybrid, 0 for sweep]
+    #[arg(long, value_name = "N", allow_negative_numbers = true,
+          value_parser = rule(|o, v| o.bins = Some(v)))]
     pub bins: Option<u32>,
 
     /// Worker threads for building and tracing, at most 4 per core (64 on any machine)
@@ -62,62 +74,67 @@ pub struct BuilderArgs {
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = parse_threads)]
     pub threads: Option<usize>,
 
-    /// SAH cost of traversing an interior node (K_T)
-    #[arg(long, value_name = "COST", allow_negative_numbers = true, value_parser = parse_non_negative,
-          default_value_t = default_cost().traversal)]
-    pub kt: f32,
+    /// SAH cost of traversing an interior node (K_T) [default: the preset's]
+    #[arg(long, value_name = "COST", allow_negative_numbers = true,
+          value_parser = rule(|o, v| o.cost.traversal = v))]
+    pub kt: Option<f32>,
 
-    /// SAH cost of one ray/triangle test (K_I)
-    #[arg(long, value_name = "COST", allow_negative_numbers = true, value_parser = parse_positive,
-          default_value_t = default_cost().intersection)]
-    pub ki: f32,
+    /// SAH cost of one ray/triangle test (K_I) [default: the preset's]
+    #[arg(long, value_name = "COST", allow_negative_numbers = true,
+          value_parser = rule(|o, v| o.cost.intersection = v))]
+    pub ki: Option<f32>,
 
     /// Factor on the cost of a split that leaves one side empty (1 disables the bonus)
-    #[arg(long, value_name = "FACTOR", allow_negative_numbers = true, value_parser = parse_unit_interval,
-          default_value_t = default_cost().empty_bonus)]
-    pub empty_bonus: f32,
+    /// [default: the preset's]
+    #[arg(long, value_name = "FACTOR", allow_negative_numbers = true,
+          value_parser = rule(|o, v| o.cost.empty_bonus = v))]
+    pub empty_bonus: Option<f32>,
 
-    /// Nodes with this many triangles or fewer become leaves
-    #[arg(long, value_name = "N", allow_negative_numbers = true,
-          default_value_t = default_cost().leaf_size)]
-    pub leaf_size: u32,
+    /// Nodes with this many triangles or fewer become leaves [default: the preset's]
+    #[arg(long, value_name = "N", allow_negative_numbers = true)]
+    pub leaf_size: Option<u32>,
 
-    /// Depth limit, or `auto` for 8 + 1.3 log2(triangles)
-    #[arg(long, value_name = "DEPTH|auto", allow_negative_numbers = true, value_parser = parse_max_depth,
-          default_value_t = MaxDepth(default_cost().max_depth))]
-    pub max_depth: MaxDepth,
+    /// Depth limit, or `auto` for 8 + 1.3 log2(triangles) [default: the preset's]
+    #[arg(long, value_name = "DEPTH|auto", allow_negative_numbers = true,
+          value_parser = parse_max_depth)]
+    pub max_depth: Option<MaxDepth>,
 
-    /// Stop splitting once references reach this many times the triangle count
-    #[arg(long, value_name = "FACTOR", allow_negative_numbers = true, value_parser = parse_at_least_one,
-          default_value_t = default_cost().max_duplication)]
-    pub max_duplication: f32,
+    /// Stop splitting once references reach this many times the triangle count [default:
+    /// the preset's]
+    #[arg(long, value_name = "FACTOR", allow_negative_numbers = true,
+          value_parser = rule(|o, v| o.cost.max_duplication = v))]
+    pub max_duplication: Option<f32>,
 }
 
 impl BuilderArgs {
-    /// The library's options for these arguments (`threads` as given, `None` for all cores).
+    /// The library's options for these arguments: the preset's, with every option given
+    /// beside it in its place (`threads` as given, `None` for all cores).
     pub fn build_options(&self) -> BuildOptions {
+        let base = self.preset.unwrap_or_default().options();
         // The GPU runs the level builder only: there it is the default.
         let algorithm = match (self.algorithm, self.device) {
-            (Some(a), _) => a.into(),
+            (Some(a), _) => a,
             (None, DeviceArg::Gpu) => Algorithm::Level,
-            (None, DeviceArg::Cpu) => default_options().algorithm,
+            (None, DeviceArg::Cpu) => base.algorithm,
         };
+        let c = base.cost;
         BuildOptions {
             algorithm,
-            axes: self.axes.into(),
-            counting: self.counting.into(),
-            clip: self.clip.into(),
+            axes: self.axes.unwrap_or(base.axes),
+            counting: self.counting.unwrap_or(base.counting),
+            clip: self.clip.map_or(base.clip, bool::from),
             threads: self.threads,
             cost: CostModel {
-                traversal: self.kt,
-                intersection: self.ki,
-                empty_bonus: self.empty_bonus,
-                leaf_size: self.leaf_size,
-                max_depth: self.max_depth.0,
-                max_duplication: self.max_duplication,
+                traversal: self.kt.unwrap_or(c.traversal),
+                intersection: self.ki.unwrap_or(c.intersection),
+                empty_bonus: self.empty_bonus.unwrap_or(c.empty_bonus),
+                leaf_size: self.leaf_size.unwrap_or(c.leaf_size),
+                max_depth: self.max_depth.map_or(c.max_depth, |d| d.0),
+                max_duplication: self.max_duplication.unwrap_or(c.max_duplication),
             },
-            median_large_node: self.large_node,
-            bins: self.bins,
+            median_large_node: self.large_node.unwrap_or(base.median_large_node),
+            bins: self.bins.or(base.bins),
+            preset: base.preset,
         }
     }
 
@@ -240,87 +257,6 @@ pub enum DeviceArg {
     Gpu,
 }
 
-/// `sahkd::Algorithm` as a command-line value.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum AlgorithmArg {
-    /// Level passes at the top, then each node's subtree by the sweep on one worker (the sweep's tree, on every core)
-    Hybrid,
-    /// Wald & Havran sweep: serial, exact SAH over sorted events
-    Sweep,
-    /// Li, Tan & Liao: breadth-first, every candidate of a level priced in parallel
-    Level,
-    /// The level framework with brute-force counting (for checking)
-    Naive,
-    /// Zhou et al. 2008: spatial median and empty-space cuts for large nodes, SAH below
-    Median,
-}
-
-impl From<Algorithm> for AlgorithmArg {
-    fn from(a: Algorithm) -> Self {
-        Self::from_str(a.name(), false).expect("the library's names are the command line's")
-    }
-}
-
-impl From<AlgorithmArg> for Algorithm {
-    fn from(a: AlgorithmArg) -> Self {
-        let value = a.to_possible_value().expect("every value is named");
-        value
-            .get_name()
-            .parse()
-            .expect("the command line's names are the library's")
-    }
-}
-
-/// `sahkd::Axes` as a command-line value.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum AxesArg {
-    /// The node's longest axis only
-    Longest,
-    /// All three axes
-    All,
-}
-
-impl From<Axes> for AxesArg {
-    fn from(a: Axes) -> Self {
-        Self::from_str(a.name(), false).expect("the library's names are the command line's")
-    }
-}
-
-impl From<AxesArg> for Axes {
-    fn from(a: AxesArg) -> Self {
-        let value = a.to_possible_value().expect("every value is named");
-        value
-            .get_name()
-            .parse()
-            .expect("the command line's names are the library's")
-    }
-}
-
-/// `sahkd::Counting` as a command-line value.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum CountingArg {
-    /// The paper's walk of an interval tree over the sorted primitives
-    SpaceTree,
-    /// Segmented prefix sums over sorted start/end events
-    Scan,
-}
-
-impl From<Counting> for CountingArg {
-    fn from(a: Counting) -> Self {
-        Self::from_str(a.name(), false).expect("the library's names are the command line's")
-    }
-}
-
-impl From<CountingArg> for Counting {
-    fn from(a: CountingArg) -> Self {
-        let value = a.to_possible_value().expect("every value is named");
-        value
-            .get_name()
-            .parse()
-            .expect("the command line's names are the library's")
-    }
-}
-
 /// An on/off flag that takes a value, so that a default of `on` can be turned off.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Switch {
@@ -342,19 +278,6 @@ impl From<Switch> for bool {
     fn from(s: Switch) -> Self {
         s == Switch::On
     }
-}
-
-/// The kebab-case names the command line uses, for reports.
-pub fn algorithm_name(a: Algorithm) -> &'static str {
-    a.name()
-}
-
-pub fn axes_name(a: Axes) -> &'static str {
-    a.name()
-}
-
-pub fn counting_name(c: Counting) -> &'static str {
-    c.name()
 }
 
 pub fn switch_name(b: bool) -> &'static str {
@@ -382,9 +305,10 @@ fn parse_max_depth(s: &str) -> Result<MaxDepth, String> {
     if s == "auto" {
         return Ok(MaxDepth(None));
     }
-    s.parse::<u32>()
-        .map(|d| MaxDepth(Some(d)))
-        .map_err(|_| format!("expected a whole number or `auto`, found `{s}`"))
+    let depth = s
+        .parse::<u32>()
+        .map_err(|_| format!("expected a whole number or `auto`, found `{s}`"))?;
+    rule(|o, d| o.cost.max_depth = Some(d))(s).map(|_: u32| MaxDepth(Some(depth)))
 }
 
 /// A thread count within the library's rule (`sahkd::threads`), as every command takes it.
@@ -395,64 +319,29 @@ pub fn parse_threads(s: &str) -> Result<usize, String> {
     }
 }
 
-/// A number of bins, in the range the library's `BuildOptions::validate` allows.
-fn parse_bins(s: &str) -> Result<u32, String> {
-    let bins = s
-        .trim()
-        .parse::<u32>()
-        .map_err(|_| format!("expected 0 or a number of bins, found `{s}`"))?;
-    let options = BuildOptions {
-        algorithm: Algorithm::Sweep,
-        bins: Some(bins),
-        ..BuildOptions::default()
-    };
-    match options.validate() {
-        Ok(()) => Ok(bins),
-        Err(sahkd::builders::BuildError::InvalidOptions(m)) => Err(m),
-        Err(e) => Err(e.to_string()),
-    }
-}
-
-fn parse_finite(s: &str) -> Result<f32, String> {
-    match s.parse::<f32>() {
-        Ok(x) if x.is_finite() => Ok(x),
-        _ => Err(format!("expected a finite number, found `{s}`")),
-    }
-}
-
-fn parse_non_negative(s: &str) -> Result<f32, String> {
-    let x = parse_finite(s)?;
-    if x >= 0.0 {
-        Ok(x)
-    } else {
-        Err(format!("must not be negative, found {x}"))
-    }
-}
-
-fn parse_positive(s: &str) -> Result<f32, String> {
-    let x = parse_finite(s)?;
-    if x > 0.0 {
-        Ok(x)
-    } else {
-        Err(format!("must be greater than 0, found {x}"))
-    }
-}
-
-fn parse_unit_interval(s: &str) -> Result<f32, String> {
-    let x = parse_finite(s)?;
-    if x > 0.0 && x <= 1.0 {
-        Ok(x)
-    } else {
-        Err(format!("must be in (0, 1], found {x}"))
-    }
-}
-
-fn parse_at_least_one(s: &str) -> Result<f32, String> {
-    let x = parse_finite(s)?;
-    if x >= 1.0 {
-        Ok(x)
-    } else {
-        Err(format!("must be at least 1, found {x}"))
+/// A number for one option, checked by the library's own rule for it (`BuildOptions::validate`
+/// of the default options with this one value set), so that a value out of range is a usage
+/// error naming the flag, in the library's words.
+fn rule<T>(set: fn(&mut BuildOptions, T)) -> impl Fn(&str) -> Result<T, String> + Clone
+where
+    T: FromStr + Copy,
+{
+    move |s: &str| {
+        let v = s
+            .trim()
+            .parse::<T>()
+            .map_err(|_| format!("expected a number, found `{s}`"))?;
+        let mut options = BuildOptions {
+            // The builder that takes every option's range (bins too).
+            algorithm: Algorithm::Sweep,
+            ..BuildOptions::default()
+        };
+        set(&mut options, v);
+        match options.validate() {
+            Ok(()) => Ok(v),
+            Err(sahkd::builders::BuildError::InvalidOptions(m)) => Err(m),
+            Err(e) => Err(e.to_string()),
+        }
     }
 }
 
@@ -461,27 +350,44 @@ mod tests {
     use super::*;
     use clap::Parser;
 
-    /// The value enums only add help texts: their names are the library's, all of them.
+    /// The command line's names are the library's, all of them.
     #[test]
     fn value_names_are_the_librarys() {
-        let names = |values: &[clap::builder::PossibleValue]| -> Vec<String> {
-            values.iter().map(|v| v.get_name().to_string()).collect()
+        let names = |arg: &str| -> Vec<String> {
+            let command = <Wrapper as clap::CommandFactory>::command();
+            let a = command.get_arguments().find(|a| a.get_id() == arg).unwrap();
+            a.get_possible_values()
+                .iter()
+                .map(|v| v.get_name().to_string())
+                .collect()
         };
-        let cli: Vec<_> = AlgorithmArg::value_variants()
-            .iter()
-            .map(|v| v.to_possible_value().unwrap())
-            .collect();
-        assert_eq!(names(&cli), Algorithm::NAMES);
-        let cli: Vec<_> = AxesArg::value_variants()
-            .iter()
-            .map(|v| v.to_possible_value().unwrap())
-            .collect();
-        assert_eq!(names(&cli), Axes::NAMES);
-        let cli: Vec<_> = CountingArg::value_variants()
-            .iter()
-            .map(|v| v.to_possible_value().unwrap())
-            .collect();
-        assert_eq!(names(&cli), Counting::NAMES);
+        assert_eq!(names("algorithm"), Algorithm::NAMES);
+        assert_eq!(names("axes"), Axes::NAMES);
+        assert_eq!(names("counting"), Counting::NAMES);
+        assert_eq!(names("preset"), Preset::NAMES);
+    }
+
+    #[test]
+    fn presets_are_the_librarys_and_options_beside_them_override() {
+        for &p in Preset::ALL {
+            assert_eq!(parse(&["--preset", p.name()]).unwrap(), p.options());
+        }
+        let o = parse(&["--preset", "fast", "--clip", "on", "--kt", "7"]).unwrap();
+        let fast = BuildOptions::fast();
+        let want = BuildOptions {
+            clip: true,
+            cost: CostModel {
+                traversal: 7.0,
+                ..fast.cost
+            },
+            ..fast
+        };
+        assert_eq!(o, want);
+        let err = parse(&["--preset", "fastest"]).unwrap_err().to_string();
+        assert!(
+            err.contains("fastest") && err.contains("fast, balanced, quality, paper, sweep"),
+            "{err}"
+        );
     }
 
     #[derive(Parser)]
@@ -534,6 +440,7 @@ mod tests {
             },
             median_large_node: 16,
             bins: Some(64),
+            preset: Some(Preset::Balanced),
         };
         assert_eq!(o, expected);
         assert_eq!(

@@ -34,7 +34,9 @@ type Structure<'py> = (Bound<'py, PyArray2<u32>>, Bound<'py, PyArray1<u32>>);
 ///
 /// vertices: (V, 3) float32 or float64 array; faces: (F, 3) array of any integer type,
 /// every index in 0..V. Other memory layouts (slices, transposes) are read in place.
-/// algorithm: "hybrid" (the default: level passes at the top, then subtrees by the sweep on
+/// preset: "fast", "balanced" (the default), "quality", "paper" or "sweep": named options, by
+/// how many rays the tree will trace; the arguments below, when given, override the preset's.
+/// algorithm: "hybrid" (binned SAH at the top, then subtrees by the sweep, on
 /// every core), "level" (the paper's parallel level-by-level builder), "sweep" (the serial reference
 /// builder), "naive" or "median" (Zhou et al.'s spatial-median builder). axes: "longest" or "all"; counting: "scan" or "space-tree" (None:
 /// the library defaults, shown in .stats). clip: clip straddling triangles to each child
@@ -49,6 +51,9 @@ struct PyKdTree {
     tree: KdTree,
     meta: Meta,
     stats: OnceLock<TreeStats>,
+    /// The build's phases after the presort (binned top, exact subtrees, layout, in ms), as
+    /// the build reported them; 0 for a tree opened from a file.
+    phases: [f64; 3],
 }
 
 /// Which oracle answers an all-hits query: the tree walk, or every triangle tested.
@@ -100,6 +105,7 @@ impl PyKdTree {
             tree,
             meta,
             stats: OnceLock::new(),
+            phases: [0.0; 3],
         }
     }
 
@@ -241,14 +247,15 @@ fn ray_args64(
 impl PyKdTree {
     #[new]
     #[pyo3(
-        signature = (vertices, faces, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost),
-        text_signature = "(vertices, faces, algorithm='hybrid', axes=None, counting=None, clip=True, threads=None, bins=None, **cost)"
+        signature = (vertices, faces, preset=None, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost),
+        text_signature = "(vertices, faces, preset=None, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         vertices: &Bound<'_, PyAny>,
         faces: &Bound<'_, PyAny>,
+        preset: Option<&Bound<'_, PyAny>>,
         algorithm: Option<&Bound<'_, PyAny>>,
         axes: Option<&Bound<'_, PyAny>>,
         counting: Option<&Bound<'_, PyAny>>,
@@ -258,16 +265,24 @@ impl PyKdTree {
         cost: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
         let threads = threads_arg(options::int_arg(threads, "threads")?)?;
-        let algorithm = options::str_arg(algorithm, "algorithm")?;
-        let options = options::build_options(
-            algorithm.as_deref().unwrap_or("hybrid"),
-            options::str_arg(axes, "axes")?.as_deref(),
-            options::str_arg(counting, "counting")?.as_deref(),
-            options::bool_arg(clip, "clip", true)?,
+        let (preset, algorithm) = (
+            options::str_arg(preset, "preset")?,
+            options::str_arg(algorithm, "algorithm")?,
+        );
+        let (axes, counting) = (
+            options::str_arg(axes, "axes")?,
+            options::str_arg(counting, "counting")?,
+        );
+        let args = options::BuildArgs {
+            preset: preset.as_deref(),
+            algorithm: algorithm.as_deref(),
+            axes: axes.as_deref(),
+            counting: counting.as_deref(),
+            clip: options::bool_arg(clip, "clip")?,
             threads,
-            options::int_arg(bins, "bins")?,
-            cost,
-        )?;
+            bins: options::int_arg(bins, "bins")?,
+        };
+        let options = options::build_options(args, cost)?;
         let triangles = arrays::triangles(vertices, faces)?;
         let pool = pool_of(threads)?;
         // The pool is chosen here, so the core must not start one of its own.
@@ -284,7 +299,11 @@ impl PyKdTree {
             presort_ms: built.report.presort_ms,
             build_threads: pool.current_num_threads(),
         };
-        Ok(Self::from_tree(built.tree, meta))
+        let r = &built.report;
+        Ok(PyKdTree {
+            phases: [r.binned_ms, r.subtrees_ms, r.layout_ms],
+            ..Self::from_tree(built.tree, meta)
+        })
     }
 
     /// Number of triangles.
@@ -322,6 +341,11 @@ impl PyKdTree {
         d.set_item("bytes", s.bytes)?;
         d.set_item("build_ms", self.meta.build_ms)?;
         d.set_item("presort_ms", self.meta.presort_ms)?;
+        let [binned, subtrees, layout] = self.phases;
+        d.set_item("binned_ms", binned)?;
+        d.set_item("subtrees_ms", subtrees)?;
+        d.set_item("layout_ms", layout)?;
+        d.set_item("preset", o.preset.map(|p| p.name()))?;
         d.set_item("algorithm", o.algorithm.name())?;
         d.set_item("axes", o.axes.name())?;
         d.set_item("counting", o.counting.name())?;

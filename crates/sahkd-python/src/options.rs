@@ -3,8 +3,7 @@
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use sahkd::cost::MAX_DEPTH_CAP;
-use sahkd::{Algorithm, Axes, BuildOptions, CostModel, Counting};
+use sahkd::{Algorithm, Axes, BuildOptions, CostModel, Counting, Preset};
 
 /// The cost-model keywords `KdTree(...)` accepts beside its named parameters.
 pub const COST_KEYWORDS: [&str; 6] = [
@@ -44,16 +43,16 @@ pub fn str_arg(v: Option<&Bound<'_, PyAny>>, name: &str) -> PyResult<Option<Stri
     }
 }
 
-/// A True/False argument (numpy booleans too).
-pub fn bool_arg(v: Option<&Bound<'_, PyAny>>, name: &str, default: bool) -> PyResult<bool> {
+/// A True/False argument (numpy booleans too); None: absent.
+pub fn bool_arg(v: Option<&Bound<'_, PyAny>>, name: &str) -> PyResult<Option<bool>> {
     match v {
-        None => Ok(default),
-        Some(v) => v.extract::<bool>().map_err(|_| {
+        Some(v) if !v.is_none() => v.extract::<bool>().map(Some).map_err(|_| {
             PyTypeError::new_err(format!(
                 "{name} must be True or False, got {}",
                 type_name(v)
             ))
         }),
+        _ => Ok(None),
     }
 }
 
@@ -77,47 +76,46 @@ pub fn int_arg(v: Option<&Bound<'_, PyAny>>, name: &str) -> PyResult<Option<i64>
     }
 }
 
-fn positive(name: &str, v: f32) -> PyResult<f32> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(PyValueError::new_err(format!(
-            "{name} must be a positive finite number, got {v}"
-        )))
-    }
+/// The keyword arguments that choose a build, as given (`None`: not given).
+pub struct BuildArgs<'a> {
+    pub preset: Option<&'a str>,
+    pub algorithm: Option<&'a str>,
+    pub axes: Option<&'a str>,
+    pub counting: Option<&'a str>,
+    pub clip: Option<bool>,
+    pub threads: Option<usize>,
+    pub bins: Option<i64>,
 }
 
-/// Options from the constructor's arguments; `cost` holds the remaining keywords.
+/// Options from the constructor's arguments: the preset's (`balanced` when none is named),
+/// with every argument given beside it in its place, and `cost` the remaining keywords.
+/// Ranges are the library's rules (`BuildOptions::validate`), in its words.
 pub fn build_options(
-    algorithm: &str,
-    axes: Option<&str>,
-    counting: Option<&str>,
-    clip: bool,
-    threads: Option<usize>,
-    bins: Option<i64>,
+    args: BuildArgs<'_>,
     cost: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<BuildOptions> {
-    let mut o = BuildOptions {
-        clip,
-        threads,
-        ..BuildOptions::default()
+    let preset: Preset = match args.preset {
+        Some(p) => choice("preset", p, Preset::NAMES)?,
+        None => Preset::default(),
     };
-    o.algorithm = choice("algorithm", algorithm, Algorithm::NAMES)?;
-    if let Some(a) = axes {
+    let mut o = preset.options();
+    if let Some(a) = args.algorithm {
+        o.algorithm = choice("algorithm", a, Algorithm::NAMES)?;
+    }
+    if let Some(a) = args.axes {
         o.axes = choice("axes", a, Axes::NAMES)?;
     }
-    if let Some(c) = counting {
+    if let Some(c) = args.counting {
         o.counting = choice("counting", c, Counting::NAMES)?;
     }
-    if threads == Some(0) {
-        return Err(PyValueError::new_err(
-            "threads must be at least 1 (or None for every core)",
-        ));
+    if let Some(clip) = args.clip {
+        o.clip = clip;
     }
+    o.threads = args.threads;
     if let Some(kw) = cost {
-        o.cost = cost_model(kw)?;
+        o.cost = cost_model(kw, o.cost)?;
     }
-    if let Some(b) = bins {
+    if let Some(b) = args.bins {
         o.bins = Some(u32::try_from(b).map_err(|_| {
             PyValueError::new_err(format!(
                 "bins must be 0 (exact SAH) or from 2 to {}, got {b}",
@@ -125,7 +123,6 @@ pub fn build_options(
             ))
         })?);
     }
-    // The library's own rules (bins' range, and which builders take bins), named as it names them.
     o.validate().map_err(|e| match e {
         sahkd::builders::BuildError::InvalidOptions(m) => PyValueError::new_err(m),
         e => PyValueError::new_err(e.to_string()),
@@ -133,7 +130,9 @@ pub fn build_options(
     Ok(o)
 }
 
-fn cost_model(kw: &Bound<'_, PyDict>) -> PyResult<CostModel> {
+/// `base` with the cost keywords given in `kw` in place (types checked here, ranges by the
+/// library's `validate`).
+fn cost_model(kw: &Bound<'_, PyDict>, base: CostModel) -> PyResult<CostModel> {
     let unknown: Vec<String> = kw
         .keys()
         .iter()
@@ -150,14 +149,14 @@ fn cost_model(kw: &Bound<'_, PyDict>) -> PyResult<CostModel> {
             COST_KEYWORDS.join(", ")
         )));
     }
-    let mut c = CostModel::default();
+    let mut c = base;
     let get = |k: &str| kw.get_item(k);
     let float = |k: &str, v: &Bound<'_, PyAny>| -> PyResult<f32> {
         v.extract::<f64>()
             .map(|x| x as f32)
             .map_err(|_| PyTypeError::new_err(format!("{k} must be a number")))
     };
-    let int = |k: &str, v: &Bound<'_, PyAny>, max: u32| -> PyResult<u32> {
+    let int = |k: &str, v: &Bound<'_, PyAny>| -> PyResult<u32> {
         if v.is_instance_of::<pyo3::types::PyBool>() {
             return Err(PyTypeError::new_err(format!(
                 "{k} must be an integer, not a bool"
@@ -167,43 +166,29 @@ fn cost_model(kw: &Bound<'_, PyDict>) -> PyResult<CostModel> {
             .extract()
             .map_err(|_| PyTypeError::new_err(format!("{k} must be an integer")))?;
         u32::try_from(x)
-            .ok()
-            .filter(|&x| x <= max)
-            .ok_or_else(|| PyValueError::new_err(format!("{k} must be in 0..={max}, got {x}")))
+            .map_err(|_| PyValueError::new_err(format!("{k} must be in 0..={}, got {x}", u32::MAX)))
     };
     if let Some(v) = get("traversal")? {
-        c.traversal = positive("traversal", float("traversal", &v)?)?;
+        c.traversal = float("traversal", &v)?;
     }
     if let Some(v) = get("intersection")? {
-        c.intersection = positive("intersection", float("intersection", &v)?)?;
+        c.intersection = float("intersection", &v)?;
     }
     if let Some(v) = get("empty_bonus")? {
-        let b = float("empty_bonus", &v)?;
-        if !(b > 0.0 && b <= 1.0) {
-            return Err(PyValueError::new_err(format!(
-                "empty_bonus must be in (0, 1] (1 disables the bonus), got {b}"
-            )));
-        }
-        c.empty_bonus = b;
+        c.empty_bonus = float("empty_bonus", &v)?;
     }
     if let Some(v) = get("leaf_size")? {
-        c.leaf_size = int("leaf_size", &v, u32::MAX)?;
+        c.leaf_size = int("leaf_size", &v)?;
     }
     if let Some(v) = get("max_depth")? {
         c.max_depth = if v.is_none() {
             None
         } else {
-            Some(int("max_depth", &v, MAX_DEPTH_CAP)?)
+            Some(int("max_depth", &v)?)
         };
     }
     if let Some(v) = get("max_duplication")? {
-        let m = float("max_duplication", &v)?;
-        if !(m.is_finite() && m >= 1.0) {
-            return Err(PyValueError::new_err(format!(
-                "max_duplication must be a finite number of at least 1, got {m}"
-            )));
-        }
-        c.max_duplication = m;
+        c.max_duplication = float("max_duplication", &v)?;
     }
     Ok(c)
 }

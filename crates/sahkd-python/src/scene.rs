@@ -168,13 +168,14 @@ impl PyScene {
 
     /// Builds the tree over every placed triangle; options as for KdTree.
     #[pyo3(
-        signature = (algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost),
-        text_signature = "(self, algorithm='hybrid', axes=None, counting=None, clip=True, threads=None, bins=None, **cost)"
+        signature = (preset=None, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost),
+        text_signature = "(self, preset=None, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn build(
         &self,
         py: Python<'_>,
+        preset: Option<&Bound<'_, PyAny>>,
         algorithm: Option<&Bound<'_, PyAny>>,
         axes: Option<&Bound<'_, PyAny>>,
         counting: Option<&Bound<'_, PyAny>>,
@@ -184,16 +185,24 @@ impl PyScene {
         cost: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<()> {
         let threads = threads_arg(options::int_arg(threads, "threads")?)?;
-        let algorithm = options::str_arg(algorithm, "algorithm")?;
-        let options = options::build_options(
-            algorithm.as_deref().unwrap_or("hybrid"),
-            options::str_arg(axes, "axes")?.as_deref(),
-            options::str_arg(counting, "counting")?.as_deref(),
-            options::bool_arg(clip, "clip", true)?,
+        let (preset, algorithm) = (
+            options::str_arg(preset, "preset")?,
+            options::str_arg(algorithm, "algorithm")?,
+        );
+        let (axes, counting) = (
+            options::str_arg(axes, "axes")?,
+            options::str_arg(counting, "counting")?,
+        );
+        let args = options::BuildArgs {
+            preset: preset.as_deref(),
+            algorithm: algorithm.as_deref(),
+            axes: axes.as_deref(),
+            counting: counting.as_deref(),
+            clip: options::bool_arg(clip, "clip")?,
             threads,
-            options::int_arg(bins, "bins")?,
-            cost,
-        )?;
+            bins: options::int_arg(bins, "bins")?,
+        };
+        let options = options::build_options(args, cost)?;
         let pool = pool_of(threads)?;
         let run = sahkd::BuildOptions {
             threads: None,

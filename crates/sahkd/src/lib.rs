@@ -31,7 +31,7 @@ pub mod trace;
 pub mod tree;
 
 pub use builders::{
-    build, build_triangles, Algorithm, Axes, Build, BuildOptions, BuildReport, Counting,
+    build, build_triangles, Algorithm, Axes, Build, BuildOptions, BuildReport, Counting, Preset,
     BINNED_REFS_PER_BIN, HYBRID_BINS, MAX_BINS,
 };
 pub use cost::CostModel;

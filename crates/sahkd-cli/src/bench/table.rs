@@ -4,7 +4,6 @@
 use super::{Results, SceneResult, Spread};
 use crate::format;
 use crate::gpu::GpuReport;
-use crate::options::{axes_name, counting_name};
 use sahkd::render::RayCounts;
 use std::fmt::Write;
 
@@ -68,8 +67,8 @@ pub fn markdown(results: &Results) -> String {
          K_T = {}, K_I = {}, empty bonus {}, leaf size {}, depth limit {}); one warm-up build, \
          then {} timed builds, median (min–max) in ms; threads {:?} (the serial sweep at {} only); \
          naive only up to {} triangles.\n",
-        axes_name(o.axes),
-        counting_name(o.counting),
+        o.axes.name(),
+        o.counting.name(),
         if o.clip { "on" } else { "off" },
         o.cost.traversal,
         o.cost.intersection,

@@ -10,7 +10,7 @@ use crate::bench::{
     LevelPoint, Machine, RaySettings, Results, SceneResult, Settings,
 };
 use crate::input::{self, Loaded, MeshArg};
-use crate::options::{algorithm_name, AlgorithmArg, Builder, DeviceArg, Switch};
+use crate::options::{named, Builder, DeviceArg, Switch};
 use crate::progress::Progress;
 use anyhow::{bail, Context as _, Result};
 use indicatif::ProgressBar;
@@ -38,12 +38,12 @@ pub struct Args {
     /// Builders to compare, comma-separated
     #[arg(
         long,
-        value_enum,
         value_name = "LIST",
         value_delimiter = ',',
-        default_value = "median,sweep,naive,level,hybrid"
+        default_value = "median,sweep,naive,level,hybrid",
+        value_parser = named::<Algorithm>(Algorithm::NAMES)
     )]
-    pub algorithms: Vec<AlgorithmArg>,
+    pub algorithms: Vec<Algorithm>,
 
     /// Thread counts, comma-separated, each at most 4 per core (64 on any machine); the
     /// serial sweep runs once, at the smallest
@@ -213,7 +213,7 @@ fn remove_if_empty(created: &[PathBuf]) {
 fn settings(args: &Args) -> Settings {
     let mut algorithms: Vec<&'static str> = Vec::new();
     for a in &args.algorithms {
-        let name = algorithm_name((*a).into());
+        let name = a.name();
         if !algorithms.contains(&name) {
             algorithms.push(name);
         }

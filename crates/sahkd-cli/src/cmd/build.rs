@@ -6,9 +6,7 @@ use super::Context;
 use crate::format::{self, Table};
 use crate::gpu::GpuReport;
 use crate::input::{self, Loaded, MeshArg, Source};
-use crate::options::{
-    algorithm_name, axes_name, counting_name, switch_name, Builder, BuilderArgs, DeviceArg,
-};
+use crate::options::{switch_name, Builder, BuilderArgs, DeviceArg};
 use crate::output;
 use crate::progress::Progress;
 use crate::resident::PeakResident;
@@ -50,6 +48,8 @@ pub struct Report<'a> {
     device: &'static str,
     /// With `--device gpu`: the adapter, upload, per-phase and download times, round trips.
     gpu: Option<&'a GpuReport>,
+    /// The preset the options started from (options given beside it override it).
+    preset: Option<&'static str>,
     algorithm: &'static str,
     axes: &'static str,
     counting: &'static str,
@@ -60,8 +60,12 @@ pub struct Report<'a> {
     load_ms: f64,
     build_ms: f64,
     presort_ms: f64,
-    /// Hybrid builder: the subtrees built depth first after the level passes.
+    /// The build's phases: presort_ms above, then the binned top (workers' time summed),
+    /// the exact subtrees (the hybrid's level hand-over: wall time; the binned build: workers'
+    /// time summed) and the layout of the finished tree.
+    binned_ms: f64,
     subtrees_ms: f64,
+    layout_ms: f64,
     sah_cost: f64,
     nodes: usize,
     interior: usize,
@@ -205,16 +209,19 @@ impl Built {
                 DeviceArg::Gpu => "gpu",
             },
             gpu: self.gpu.as_ref(),
-            algorithm: algorithm_name(options.algorithm),
-            axes: axes_name(options.axes),
-            counting: counting_name(options.counting),
+            preset: options.preset.map(|p| p.name()),
+            algorithm: options.algorithm.name(),
+            axes: options.axes.name(),
+            counting: options.counting.name(),
             clip: options.clip,
             bins: options.resolved_bins(),
             threads: builder.threads(),
             load_ms: self.loaded.load_ms,
             build_ms: report.build_ms,
             presort_ms: report.presort_ms,
+            binned_ms: report.binned_ms,
             subtrees_ms: report.subtrees_ms,
+            layout_ms: report.layout_ms,
             sah_cost: stats.sah_cost,
             nodes: stats.nodes,
             interior: stats.interior,
@@ -249,13 +256,16 @@ impl Built {
             .row(
                 "builder",
                 format!(
-                    "{}, {}, {} counting, clip {}{}, {} threads",
-                    algorithm_name(options.algorithm),
+                    "{}{}, {}, {} counting, clip {}{}, {} threads",
+                    options
+                        .preset
+                        .map_or(String::new(), |p| format!("preset {p}: ")),
+                    options.algorithm.name(),
                     match options.axes {
                         Axes::Longest => "longest axis",
                         Axes::All => "all axes",
                     },
-                    counting_name(options.counting),
+                    options.counting.name(),
                     switch_name(options.clip),
                     match options.resolved_bins() {
                         0 => String::new(),
@@ -287,8 +297,19 @@ impl Built {
                     ),
                 );
         }
-        t.row("pre-sort time", format::ms(report.presort_ms))
-            .row("SAH cost", format!("{:.3}", stats.sah_cost))
+        t.row("pre-sort time", format::ms(report.presort_ms));
+        if report.binned_ms > 0.0 || report.subtrees_ms > 0.0 {
+            t.row(
+                "phases",
+                format!(
+                    "binned top {}, exact subtrees {} (workers' time), layout {}",
+                    format::ms(report.binned_ms),
+                    format::ms(report.subtrees_ms),
+                    format::ms(report.layout_ms)
+                ),
+            );
+        }
+        t.row("SAH cost", format!("{:.3}", stats.sah_cost))
             .row("nodes", format::count(stats.nodes as u64))
             .row("interior nodes", format::count(stats.interior as u64))
             .row("leaves", format::count(stats.leaves as u64))

@@ -4,7 +4,6 @@
 use super::Context;
 use crate::format::{self, Table};
 use crate::input::{self, Loaded, MeshArg, Source};
-use crate::options::{algorithm_name, axes_name, counting_name};
 use crate::progress::Progress;
 use anyhow::Result;
 use sahkd::{KdTree, Mesh, TreeMeta};
@@ -86,6 +85,8 @@ struct TreeReport {
     references: usize,
     max_depth: u32,
     sah_cost: f64,
+    /// The preset the saved tree's options started from (none in files from before presets).
+    preset: Option<&'static str>,
     algorithm: &'static str,
     axes: &'static str,
     counting: &'static str,
@@ -157,9 +158,10 @@ fn tree_info(loaded: &Loaded, tree: &KdTree, meta: &TreeMeta, json: bool) -> Res
         references: stats.references,
         max_depth: stats.max_depth,
         sah_cost: stats.sah_cost,
-        algorithm: algorithm_name(o.algorithm),
-        axes: axes_name(o.axes),
-        counting: counting_name(o.counting),
+        preset: o.preset.map(|p| p.name()),
+        algorithm: o.algorithm.name(),
+        axes: o.axes.name(),
+        counting: o.counting.name(),
         clip: o.clip,
         bins: o.resolved_bins(),
         build_ms: meta.build_ms,
@@ -182,7 +184,10 @@ fn tree_info(loaded: &Loaded, tree: &KdTree, meta: &TreeMeta, json: bool) -> Res
         .row(
             "built by",
             format!(
-                "{}, {} axes, {} counting, clip {}{}, {} threads, in {}",
+                "{}{}, {} axes, {} counting, clip {}{}, {} threads, in {}",
+                report
+                    .preset
+                    .map_or(String::new(), |p| format!("preset {p}: ")),
                 report.algorithm,
                 report.axes,
                 report.counting,

@@ -15,7 +15,8 @@ mod stitch;
 mod sweep;
 
 pub use options::{
-    Algorithm, Axes, BuildOptions, Counting, BINNED_REFS_PER_BIN, HYBRID_BINS, MAX_BINS,
+    Algorithm, Axes, BuildOptions, Counting, Preset, BINNED_REFS_PER_BIN, FAST_BINS,
+    FAST_LEAF_SIZE, HYBRID_BINS, MAX_BINS,
 };
 pub use report::{BuildReport, LevelReport, PhaseTimes};
 
@@ -94,7 +95,7 @@ pub fn build_triangles(
     }
     let built = match options.threads {
         Some(n) => {
-            let n = crate::threads::check(n).map_err(BuildError::InvalidOptions)?;
+            // `validate` checked `n` against the thread rule.
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
                 .build()
@@ -163,9 +164,9 @@ fn run(triangles: Vec<Triangle>, options: &BuildOptions) -> Build {
         }
     }
     let mut report = built.report;
+    let layout = Instant::now();
+    let tree = KdTree::from_parts(triangles, bounds, built.nodes, built.refs);
+    report.layout_ms += layout.elapsed().as_secs_f64() * 1e3;
     report.build_ms = start.elapsed().as_secs_f64() * 1e3;
-    Build {
-        tree: KdTree::from_parts(triangles, bounds, built.nodes, built.refs),
-        report,
-    }
+    Build { tree, report }
 }

@@ -49,6 +49,70 @@ pub enum Counting {
     Scan,
 }
 
+/// A named starting point for [`BuildOptions`], chosen by how many rays the tree will trace:
+/// options given beside a preset override its own. [`Preset::options`] gives its options,
+/// which remember the preset they came from (`BuildOptions::preset`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Preset {
+    /// The quickest build of a tree that still traces well: few rays per build.
+    Fast,
+    /// The default: the least build time plus ray time over the mixed ray sets measured.
+    #[default]
+    Balanced,
+    /// Exact SAH over all three axes with perfect splits: many rays per build.
+    Quality,
+    /// The paper's own configuration: the level builder, longest axis, triangle boxes.
+    Paper,
+    /// The serial Wald–Havran sweep, exact SAH: the reference the other builders are
+    /// checked against.
+    Sweep,
+}
+
+impl Preset {
+    /// The preset's options (threads unset: every core).
+    pub fn options(self) -> BuildOptions {
+        let balanced = BuildOptions::default();
+        let options = match self {
+            Preset::Balanced => balanced,
+            Preset::Fast => BuildOptions {
+                clip: false,
+                bins: Some(FAST_BINS),
+                cost: CostModel {
+                    leaf_size: FAST_LEAF_SIZE,
+                    ..balanced.cost
+                },
+                ..balanced
+            },
+            Preset::Quality => BuildOptions {
+                axes: Axes::All,
+                clip: true,
+                bins: Some(0),
+                ..balanced
+            },
+            Preset::Paper => BuildOptions {
+                algorithm: Algorithm::Level,
+                axes: Axes::Longest,
+                clip: false,
+                ..balanced
+            },
+            Preset::Sweep => BuildOptions {
+                algorithm: Algorithm::Sweep,
+                ..balanced
+            },
+        };
+        BuildOptions {
+            preset: Some(self),
+            ..options
+        }
+    }
+}
+
+/// The `fast` preset's bins: binned down to `BINNED_REFS_PER_BIN * FAST_BINS` references.
+pub const FAST_BINS: u32 = 16;
+/// The `fast` preset's leaf size: nodes this small become leaves unpriced.
+pub const FAST_LEAF_SIZE: u32 = 2;
+
 /// Everything that decides a build. Same options and input give the same tree, whatever the
 /// number of threads. Fields missing from serialized options take their defaults, so options
 /// saved before a field existed still load.
@@ -74,6 +138,11 @@ pub struct BuildOptions {
     /// saved options when `None`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bins: Option<u32>,
+    /// The preset these options started from, before any option given beside it: a label for
+    /// reports and saved trees, which decides nothing itself. `None` in options saved before
+    /// presets existed, and left out of saved options then.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub preset: Option<Preset>,
 }
 
 /// The bins of a hybrid build whose options leave `bins` unset. Measured on bunny,
@@ -104,6 +173,7 @@ impl Default for BuildOptions {
             cost: CostModel::default(),
             median_large_node: 64,
             bins: None,
+            preset: Some(Preset::Balanced),
         }
     }
 }
@@ -119,30 +189,26 @@ impl BuildOptions {
         }
     }
 
-    /// The paper's builder with its own choices: longest axis, triangle boxes.
-    pub fn paper() -> Self {
-        BuildOptions {
-            algorithm: Algorithm::Level,
-            axes: Axes::Longest,
-            clip: false,
-            ..Self::default()
-        }
+    /// The `fast` preset ([`Preset::Fast`]).
+    pub fn fast() -> Self {
+        Preset::Fast.options()
     }
-    /// The best trees: exact SAH over all three axes with perfect splits.
+    /// The `balanced` preset, the default ([`Preset::Balanced`]).
+    pub fn balanced() -> Self {
+        Preset::Balanced.options()
+    }
+    /// The `quality` preset: exact SAH over all three axes with perfect splits.
     pub fn quality() -> Self {
-        BuildOptions {
-            axes: Axes::All,
-            clip: true,
-            bins: Some(0),
-            ..Self::default()
-        }
+        Preset::Quality.options()
     }
-    /// The serial reference builder.
+    /// The `paper` preset: the paper's builder with its own choices (longest axis, triangle
+    /// boxes).
+    pub fn paper() -> Self {
+        Preset::Paper.options()
+    }
+    /// The `sweep` preset: the serial reference builder.
     pub fn sweep() -> Self {
-        BuildOptions {
-            algorithm: Algorithm::Sweep,
-            ..Self::default()
-        }
+        Preset::Sweep.options()
     }
 }
 
@@ -186,6 +252,8 @@ named_values!(Algorithm, "algorithm",
     Hybrid => "hybrid", Sweep => "sweep", Level => "level", Naive => "naive", Median => "median");
 named_values!(Axes, "axes", Longest => "longest", All => "all");
 named_values!(Counting, "counting", SpaceTree => "space-tree", Scan => "scan");
+named_values!(Preset, "preset",
+    Fast => "fast", Balanced => "balanced", Quality => "quality", Paper => "paper", Sweep => "sweep");
 
 impl BuildOptions {
     /// Checks every parameter's range, naming the first one out of it. `build` and
@@ -222,8 +290,9 @@ impl BuildOptions {
                 "max_depth must be at most {MAX_DEPTH_CAP}, got {d}"
             ));
         }
-        if self.threads == Some(0) {
-            return bad("threads must be at least 1".into());
+        if let Some(n) = self.threads {
+            crate::threads::check(n)
+                .map_err(|e| BuildError::InvalidOptions(format!("threads: {e}")))?;
         }
         if let Some(bins) = self.bins.filter(|&b| b != 0) {
             if bins == 1 || bins > MAX_BINS {

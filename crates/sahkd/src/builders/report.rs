@@ -14,9 +14,16 @@ pub struct BuildReport {
     /// One entry per tree level, for the breadth-first builders (the hybrid builder: the
     /// levels before its hand-over).
     pub levels: Vec<LevelReport>,
-    /// Wall time of the subtrees built depth first after a hand-over (hybrid builder; 0 for
-    /// the others).
+    /// The subtrees built depth first by the exact sweep: the hybrid's after its level passes
+    /// (wall time), or the binned build's below its threshold (time of the workers, summed:
+    /// built at once, they overlap in wall time); 0 for the others.
     pub subtrees_ms: f64,
+    /// Binned builds: pricing and partitioning the binned nodes at the top of the tree, the
+    /// workers' time summed.
+    pub binned_ms: f64,
+    /// Placing the parts of the tree in its final layout and making the tree of them: wall
+    /// time.
+    pub layout_ms: f64,
 }
 
 /// One level of a breadth-first build.

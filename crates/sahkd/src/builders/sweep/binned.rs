@@ -27,6 +27,7 @@ use crate::geometry::{Aabb, Triangle};
 use crate::tree::Node;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
 
 /// Nodes with more references than this get their histograms from parallel chunks (when
 /// building in parallel): the top nodes, where there are too few nodes to keep the workers busy.
@@ -70,6 +71,10 @@ struct Tally {
     budget_bound: bool,
     clipped_away: usize,
     presort_ms: f64,
+    /// Time spent pricing and partitioning binned nodes, and building exact subtrees (their
+    /// presorts included), summed over the workers.
+    binned_ms: f64,
+    subtrees_ms: f64,
     peak_working_bytes: usize,
 }
 
@@ -78,6 +83,8 @@ impl Tally {
         self.budget_bound |= other.budget_bound;
         self.clipped_away += other.clipped_away;
         self.presort_ms += other.presort_ms;
+        self.binned_ms += other.binned_ms;
+        self.subtrees_ms += other.subtrees_ms;
         self.peak_working_bytes = self.peak_working_bytes.max(other.peak_working_bytes);
         self
     }
@@ -137,13 +144,17 @@ fn run(ctx: &Ctx, prims: &Primitives) -> Option<BuiltTree> {
     let root_bytes = root.ids.len() * (4 + std::mem::size_of::<Aabb>());
     let total = AtomicUsize::new(prims.triangles.len());
     let (top, tally) = grow(ctx, root, &total);
+    let layout = Instant::now();
     let mut built = BuiltTree::default();
     built.nodes.push(Node::leaf(0, 0));
     lay_out(top, &mut built, 0);
+    built.report.layout_ms = layout.elapsed().as_secs_f64() * 1e3;
     if ctx.parallel && (tally.budget_bound || built.refs.len() + tally.clipped_away > ctx.budget) {
         return None;
     }
     built.report.presort_ms = tally.presort_ms;
+    built.report.binned_ms = tally.binned_ms;
+    built.report.subtrees_ms = tally.subtrees_ms;
     // The root's arrays and their two children's, beside the biggest sweep's working set.
     built.report.peak_working_bytes = 2 * root_bytes + tally.peak_working_bytes;
     Some(built)
@@ -157,6 +168,7 @@ fn grow(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
     if !(binned || forked) {
         return exact(ctx, node, total);
     }
+    let start = Instant::now();
     let cost = &ctx.options.cost;
     let mut tally = Tally::default();
     let split = if n as u32 <= cost.leaf_size || node.depth >= ctx.max_depth {
@@ -186,9 +198,11 @@ fn grow(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
             fits
         });
     let Some(split) = split else {
+        tally.binned_ms = start.elapsed().as_secs_f64() * 1e3;
         return (Top::Leaf(node.ids), tally);
     };
     let (left, right) = partition(ctx, node, &split);
+    tally.binned_ms = start.elapsed().as_secs_f64() * 1e3;
     let kept = left.ids.len() + right.ids.len();
     tally.clipped_away += (split.n_left + split.n_right) as usize - kept;
     if !ctx.parallel {
@@ -213,6 +227,7 @@ fn grow(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
 /// The exact sweep's subtree of a node at or below the threshold, from its events made and
 /// sorted here.
 fn exact(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
+    let start = Instant::now();
     let n = node.ids.len();
     let triangles: Vec<Triangle> = node
         .ids
@@ -255,6 +270,8 @@ fn exact(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
         budget_bound: report.budget_bound,
         clipped_away: report.clipped_away,
         presort_ms: report.presort_ms,
+        binned_ms: 0.0,
+        subtrees_ms: start.elapsed().as_secs_f64() * 1e3,
         peak_working_bytes: report.peak_working_bytes,
     };
     (Top::Exact(piece), tally)
