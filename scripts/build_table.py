@@ -1,20 +1,22 @@
 #!/usr/bin/env python3
-"""The build-time table of BENCHMARKS.md: sahkd's builders against Embree 4's BVH
-build on the same meshes, 1 and 2 threads, in one run.
+"""The build-time table of BENCHMARKS.md and README: every build preset of sahkd beside
+Embree 4's BVH build (embreex, its default quality) on the same meshes, 2 and 1 threads, in
+one run.
 
     cargo build --release -p sahkd-cli
-    VENV/bin/python scripts/build_table.py [--repeat 5] [--baseline OLD_SAHKD] [MESH ...]
+    VENV/bin/python scripts/build_table.py [--repeat 5] [--presets LIST] [--baseline OLD_SAHKD] [MESH ...]
 
-MESH is a name in ../shared/scenes (or $SAHKD_SCENES); default bunny, dragon_res2 and dragon.
-Every configuration is one warm-up build and `--repeat` timed builds of `sahkd build --json`
-(`build_ms`); one thread means `taskset -c 0` and `--threads 1`. Embree is timed by
-scripts/embree_build.py in the same run, from the indexed mesh (needs embreex and trimesh
-in the interpreter running this),
-under `taskset -c 0` for one thread. `--baseline` adds the serial sweep of another sahkd
-binary (e.g. one built at an older commit), to compare sweeps at identical trees: its rows
-must give the same nodes, references and SAH cost; `--baseline-kt 15` times this binary's sweep
-again at the baseline's K_T for that comparison. Prints one markdown
-table with medians and min-max, and the load average before and after each mesh.
+MESH is a name in ../shared/scenes (or $SAHKD_SCENES); default bunny, sponza_dabrovic, dragon
+and dragon_res2. Every preset is one warm-up build and `--repeat` timed builds of `sahkd build
+--preset NAME --json` (`build_ms`, the median reported); one thread means `taskset -c 0` and
+`--threads 1`. `sweep` is serial and is timed at one thread only. Embree is timed by
+scripts/embree_build.py in the same run, from the indexed mesh (needs embreex and trimesh in
+the interpreter running this), under `taskset -c 0` for one thread. `--baseline` adds the
+serial sweep of another sahkd binary (one built at an older commit, say), to compare sweeps at
+identical trees: its rows must give the same nodes, references and SAH cost; `--baseline-kt K`
+times this binary's sweep again at the baseline's K_T for that comparison. Prints one markdown
+table with medians and min-max, the ratio to Embree at the same threads, the build's phases
+of the last 2-thread run, and the load average before and after each mesh.
 """
 
 import argparse
@@ -27,21 +29,9 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
-DEFAULT_MESHES = ["bunny", "dragon_res2", "dragon"]
-# (algorithm, axes, threads, bins); the first is the default build. Bins None is the
-# builder's own default (256 for the hybrid, exact for the others); 0 is exact SAH.
-CONFIGS = [
-    ("hybrid", "longest", 2, None),
-    ("hybrid", "longest", 2, 0),
-    ("hybrid", "longest", 1, None),
-    ("hybrid", "longest", 1, 0),
-    ("sweep", "longest", 1, None),
-    ("level", "longest", 2, None),
-    ("hybrid", "all", 2, None),
-    ("hybrid", "all", 2, 0),
-    ("sweep", "all", 1, None),
-    ("median", "longest", 2, None),
-]
+DEFAULT_MESHES = ["bunny", "sponza_dabrovic", "dragon", "dragon_res2"]
+PRESETS = ["fast", "balanced", "quality", "paper", "sweep"]
+SERIAL = {"sweep"}
 EMBREE = re.compile(r"build median ([0-9.]+) ms \(min ([0-9.]+), max ([0-9.]+)")
 
 
@@ -61,11 +51,9 @@ def pinned(threads):
     return ["taskset", "-c", "0"] if threads == 1 else []
 
 
-def sahkd(binary, mesh, algorithm, axes, threads, repeat, bins=None, extra=()):
-    cmd = pinned(threads) + [
-        binary, "build", mesh, "--algorithm", algorithm, "--axes", axes,
-        "--threads", str(threads), "--json", "--quiet",
-    ] + ([] if bins is None else ["--bins", str(bins)]) + list(extra)
+def sahkd(binary, mesh, options, threads, repeat):
+    cmd = pinned(threads) + [binary, "build", mesh, "--threads", str(threads), "--json", "--quiet"] \
+        + list(options)
     run(cmd)
     reports = [json.loads(run(cmd)) for _ in range(repeat)]
     times = [r["build_ms"] for r in reports]
@@ -75,6 +63,7 @@ def sahkd(binary, mesh, algorithm, axes, threads, repeat, bins=None, extra=()):
         sah=last["sah_cost"], nodes=last["nodes"], refs=last["references"],
         bytes=last.get("peak_working_bytes_per_triangle"), bins=last.get("bins"),
         triangles=last["triangles"],
+        phases={k: last.get(k, 0.0) for k in ("presort_ms", "binned_ms", "subtrees_ms", "layout_ms")},
     )
 
 
@@ -93,10 +82,17 @@ def working(b):
     return "-" if b is None else f"{b:.0f}"
 
 
+def phases(r):
+    p = r["phases"]
+    return (f"presort {p['presort_ms']:.0f}, top {p['binned_ms']:.0f}, subtrees {p['subtrees_ms']:.0f}, "
+            f"layout {p['layout_ms']:.0f}")
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("meshes", nargs="*", default=DEFAULT_MESHES)
     p.add_argument("--repeat", type=int, default=5)
+    p.add_argument("--presets", default=",".join(PRESETS), help="comma-separated preset names")
     p.add_argument("--sahkd", default=os.path.join(ROOT, "target", "release", "sahkd"))
     p.add_argument("--baseline", help="another sahkd binary whose serial sweep is timed beside")
     p.add_argument("--baseline-kt", type=float,
@@ -104,48 +100,55 @@ def main():
                         "binary's sweep is timed again with --kt K, so that both build one tree")
     args = p.parse_args()
     scenes = os.environ.get("SAHKD_SCENES", os.path.join(ROOT, "..", "shared", "scenes"))
-    print("| scene | builder (axes) | threads | build ms, median (min-max) | / Embree same threads "
-          "| SAH cost | nodes | references | peak working B/tri |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    print("| mesh | build | 2 threads ms, median (min-max) | / Embree | 1 thread ms | / Embree "
+          "| SAH cost | nodes | references | phases at 2 threads, ms (top and subtrees: workers' time) |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---|")
     notes = []
     for name in args.meshes:
         mesh = os.path.join(scenes, f"{name}.ply")
         before = load()
+        bvh = {t: embree(mesh, t, args.repeat) for t in (2, 1)}
         rows = []
-        for a, x, t, bins in CONFIGS:
-            r = sahkd(args.sahkd, mesh, a, x, t, args.repeat, bins)
-            binned = f", {r['bins']} bins" if r["bins"] else ""
-            rows.append((f"{a} ({x}{binned})", t, r))
+        for preset in args.presets.split(","):
+            options = ["--preset", preset]
+            timed = {t: sahkd(args.sahkd, mesh, options, t, args.repeat)
+                     for t in ((1,) if preset in SERIAL else (2, 1))}
+            rows.append((preset, timed))
         if args.baseline:
             for axes in ["longest", "all"]:
+                options = ["--preset", "sweep", "--axes", axes]
                 if args.baseline_kt is not None:
-                    rows.append((f"sweep ({axes}, K_T {args.baseline_kt:g})", 1,
-                                 sahkd(args.sahkd, mesh, "sweep", axes, 1, args.repeat,
-                                       extra=["--kt", str(args.baseline_kt)])))
-                rows.append((f"sweep ({axes}), baseline binary", 1,
-                             sahkd(args.baseline, mesh, "sweep", axes, 1, args.repeat)))
-        bvh = {t: embree(mesh, t, args.repeat) for t in (2, 1)}
-        label = f"{name} ({rows[0][2]['triangles']:,})"
-        for i, (builder, threads, r) in enumerate(rows):
-            bold = "**" if i == 0 else ""
-            print(f"| {label if i == 0 else ''} | {bold}{builder}{bold} | {threads} | {spread(r['ms'])} "
-                  f"| {r['ms'][0] / bvh[threads][0]:.2f} | {r['sah']:.3f} | {r['nodes']:,} | {r['refs']:,} "
-                  f"| {working(r['bytes'])} |", flush=True)
-        print(f"| | Embree 4 BVH | 2 / 1 | {spread(bvh[2])} / {spread(bvh[1])} | 1 | (BVH) | | | |", flush=True)
+                    rows.append((f"sweep ({axes}, K_T {args.baseline_kt:g})",
+                                 {1: sahkd(args.sahkd, mesh, options + ["--kt", str(args.baseline_kt)], 1,
+                                           args.repeat)}))
+                rows.append((f"sweep ({axes}), baseline binary",
+                             {1: sahkd(args.baseline, mesh, ["--algorithm", "sweep", "--axes", axes], 1,
+                                       args.repeat)}))
+        triangles = rows[0][1][1]["triangles"]
+        print(f"| {name} ({triangles:,}) | Embree 4 BVH | {spread(bvh[2])} | 1 | {spread(bvh[1])} | 1 "
+              f"| (BVH) | | | |", flush=True)
+        for builder, timed in rows:
+            two, one = timed.get(2), timed[1]
+            cells = f"{spread(two['ms'])} | {two['ms'][0] / bvh[2][0]:.2f}" if two else "(serial) | "
+            bold = "**" if builder == "balanced" else ""
+            print(f"| | {bold}{builder}{bold} | {cells} | {spread(one['ms'])} | {one['ms'][0] / bvh[1][0]:.2f} "
+                  f"| {one['sah']:.3f} | {one['nodes']:,} | {one['refs']:,} | {phases(two or one)} |", flush=True)
         if args.baseline:
             for axes in ["longest", "all"]:
                 mine = f"sweep ({axes}, K_T {args.baseline_kt:g})" if args.baseline_kt is not None \
-                    else f"sweep ({axes})"
-                new = next(r for b, t, r in rows if b == mine)
-                old = next(r for b, t, r in rows if b == f"sweep ({axes}), baseline binary")
-                # The SAH cost is summed in each report's own order: equal to rounding (dragon_res2
-                # at K_T 15: 1315.40989 both ways, 2.6e-8 apart).
+                    else "sweep"
+                new = next(t[1] for b, t in rows if b == mine)
+                old = next(t[1] for b, t in rows if b == f"sweep ({axes}), baseline binary")
+                # The SAH cost is summed in each report's own order: equal to rounding.
                 same = (new["nodes"], new["refs"]) == (old["nodes"], old["refs"]) and \
                     abs(new["sah"] - old["sah"]) <= 1e-7 * new["sah"]
                 notes.append(f"{name} sweep ({axes}): baseline / this = {old['ms'][0] / new['ms'][0]:.2f}x, "
                              f"{'same' if same else 'DIFFERENT'} tree")
         notes.append(f"{name}: load average {before} before, {load()} after")
+    with open("/proc/cpuinfo") as f:
+        model = next((l.split(":", 1)[1].strip() for l in f if l.startswith("model name")), "?")
     print()
+    print(f"- {model}, {os.cpu_count()} cores")
     for n in notes:
         print(f"- {n}")
 

@@ -265,8 +265,8 @@ enum sahkd_status sahkd_tree_from_bytes(const uint8_t *data, size_t size, struct
 // Fills `options` with the library's defaults (and `size`).
 enum sahkd_status sahkd_build_options_default(struct sahkd_build_options *options);
 
-// Fills `options` with a named configuration of the library ("default", "quality",
-// "paper", "sweep").
+// Fills `options` with a named configuration of the library: "fast", "balanced" (also
+// "default"), "quality", "paper", "sweep".
 enum sahkd_status sahkd_build_options_preset(const char *name, struct sahkd_build_options *options);
 
 // Sets one option by the names the command line and Python use: `key` is "algorithm",

@@ -3,7 +3,7 @@
 
 use crate::checked::{get, get_mut, text};
 use crate::{guard, invalid, sahkd_status, Result};
-use sahkd::{Algorithm, Axes, BuildOptions, CostModel, Counting};
+use sahkd::{Algorithm, Axes, BuildOptions, CostModel, Counting, Preset};
 use std::ffi::c_char;
 use std::mem::{offset_of, size_of};
 
@@ -173,6 +173,8 @@ impl sahkd_build_options {
             max_depth: (o.max_depth != 0).then_some(o.max_depth),
             max_duplication: o.max_duplication,
         };
+        // The struct does not say which preset filled it.
+        options.preset = None;
         options.validate().or_else(|e| invalid(e.to_string()))?;
         Ok(options)
     }
@@ -187,24 +189,14 @@ pub(crate) unsafe fn build_options(options: *const sahkd_build_options) -> Resul
     }
 }
 
-/// A named configuration of the library.
-type Preset = (&'static str, fn() -> BuildOptions);
-
-/// The library's named configurations.
+/// The library's preset of that name (`sahkd::Preset`'s names); "default" is `balanced`.
 fn preset(name: &str) -> Result<BuildOptions> {
-    let presets: [Preset; 4] = [
-        ("default", BuildOptions::default),
-        ("quality", BuildOptions::quality),
-        ("paper", BuildOptions::paper),
-        ("sweep", BuildOptions::sweep),
-    ];
-    let key = name.trim().to_ascii_lowercase();
-    match presets.iter().find(|(n, _)| *n == key) {
-        Some((_, make)) => Ok(make()),
-        None => invalid(format!(
-            "unknown preset `{name}`: expected one of {}",
-            presets.map(|(n, _)| n).join(", ")
-        )),
+    if name.trim().eq_ignore_ascii_case("default") {
+        return Ok(BuildOptions::default());
+    }
+    match name.parse::<Preset>() {
+        Ok(p) => Ok(p.options()),
+        Err(e) => invalid(format!("{e} (or default)")),
     }
 }
 
@@ -219,8 +211,8 @@ pub unsafe extern "C" fn sahkd_build_options_default(
     })
 }
 
-/// Fills `options` with a named configuration of the library ("default", "quality",
-/// "paper", "sweep").
+/// Fills `options` with a named configuration of the library: "fast", "balanced" (also
+/// "default"), "quality", "paper", "sweep".
 #[no_mangle]
 pub unsafe extern "C" fn sahkd_build_options_preset(
     name: *const c_char,

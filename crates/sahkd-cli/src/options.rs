@@ -449,6 +449,54 @@ mod tests {
         );
     }
 
+    /// Each option at the library's edges: the command line accepts exactly what the
+    /// library's `validate` accepts.
+    #[test]
+    fn options_at_their_edges_get_the_librarys_answer() {
+        type Set = fn(&mut BuildOptions);
+        let cases: [(&[&str], Set); 18] = [
+            (&["--kt", "0"], |o| o.cost.traversal = 0.0),
+            (&["--kt", "-0.000001"], |o| o.cost.traversal = -0.000001),
+            (&["--ki", "0.000001"], |o| o.cost.intersection = 0.000001),
+            (&["--ki", "0"], |o| o.cost.intersection = 0.0),
+            (&["--empty-bonus", "1"], |o| o.cost.empty_bonus = 1.0),
+            (&["--empty-bonus", "0"], |o| o.cost.empty_bonus = 0.0),
+            (&["--max-duplication", "1"], |o| {
+                o.cost.max_duplication = 1.0
+            }),
+            (&["--max-duplication", "0.999"], |o| {
+                o.cost.max_duplication = 0.999
+            }),
+            (&["--max-depth", "60"], |o| o.cost.max_depth = Some(60)),
+            (&["--max-depth", "61"], |o| o.cost.max_depth = Some(61)),
+            (&["--threads", "1"], |o| o.threads = Some(1)),
+            (&["--threads", "0"], |o| o.threads = Some(0)),
+            (&["--bins", "0"], |o| o.bins = Some(0)),
+            (&["--bins", "1"], |o| o.bins = Some(1)),
+            (&["--bins", "1024"], |o| o.bins = Some(1024)),
+            (&["--bins", "1025"], |o| o.bins = Some(1025)),
+            (&["--algorithm", "level", "--bins", "0"], |o| {
+                o.algorithm = Algorithm::Level;
+                o.bins = Some(0)
+            }),
+            (&["--algorithm", "level", "--bins", "2"], |o| {
+                o.algorithm = Algorithm::Level;
+                o.bins = Some(2)
+            }),
+        ];
+        for (args, set) in cases {
+            let mut library = BuildOptions::default();
+            set(&mut library);
+            let want = library.validate().is_ok();
+            // What a command does with them: parse, then the builder's check before any input.
+            let got = parse(args).is_ok_and(|o| Builder::new(o).is_ok());
+            assert_eq!(
+                got, want,
+                "{args:?}: the command line and the library disagree"
+            );
+        }
+    }
+
     #[test]
     fn bad_values_are_usage_errors() {
         for bad in [

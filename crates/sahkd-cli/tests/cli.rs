@@ -4,7 +4,7 @@
 use npyz::npz::NpzArchive;
 use npyz::WriterBuilder;
 use sahkd::trace::{brute, precise};
-use sahkd::{scenes, BuildOptions, CostModel, Mesh, Ray, Ray64, Triangle, Vec3};
+use sahkd::{scenes, BuildOptions, Mesh, Ray, Ray64, Triangle, Vec3};
 use serde_json::Value;
 use std::fs::File;
 use std::io::BufWriter;
@@ -285,27 +285,29 @@ fn build_text_report_names_the_statistics() {
 }
 
 #[test]
-fn help_shows_the_library_defaults() {
+fn help_shows_the_presets_and_that_options_default_to_the_presets() {
     let out = sahkd(&["build", "--help"]);
     assert!(out.status.success());
     let help = stdout(&out);
-    let cost = CostModel::default();
-    for (flag, default) in [
-        ("--kt", cost.traversal.to_string()),
-        ("--ki", cost.intersection.to_string()),
-        ("--empty-bonus", cost.empty_bonus.to_string()),
-        ("--leaf-size", cost.leaf_size.to_string()),
-        ("--max-duplication", cost.max_duplication.to_string()),
+    let preset = help.split("--preset").nth(1).expect("no --preset");
+    let preset = preset.split("\n      --").next().unwrap();
+    for name in sahkd::Preset::NAMES {
+        assert!(preset.contains(name), "--preset: no {name} in {preset}");
+    }
+    for flag in [
+        "--kt",
+        "--ki",
+        "--empty-bonus",
+        "--leaf-size",
+        "--max-duplication",
+        "--clip",
     ] {
         let section = help
             .split(flag)
             .nth(1)
             .unwrap_or_else(|| panic!("no {flag}"));
         let next = section.split("\n      --").next().unwrap();
-        assert!(
-            next.contains(&format!("[default: {default}]")),
-            "{flag}: {next}"
-        );
+        assert!(next.contains("[default: the preset's]"), "{flag}: {next}");
     }
 }
 

@@ -265,22 +265,14 @@ impl PyKdTree {
         cost: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
         let threads = threads_arg(options::int_arg(threads, "threads")?)?;
-        let (preset, algorithm) = (
-            options::str_arg(preset, "preset")?,
-            options::str_arg(algorithm, "algorithm")?,
-        );
-        let (axes, counting) = (
-            options::str_arg(axes, "axes")?,
-            options::str_arg(counting, "counting")?,
-        );
         let args = options::BuildArgs {
-            preset: preset.as_deref(),
-            algorithm: algorithm.as_deref(),
-            axes: axes.as_deref(),
-            counting: counting.as_deref(),
-            clip: options::bool_arg(clip, "clip")?,
+            preset,
+            algorithm,
+            axes,
+            counting,
+            clip,
             threads,
-            bins: options::int_arg(bins, "bins")?,
+            bins,
         };
         let options = options::build_options(args, cost)?;
         let triangles = arrays::triangles(vertices, faces)?;

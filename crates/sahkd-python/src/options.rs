@@ -76,46 +76,47 @@ pub fn int_arg(v: Option<&Bound<'_, PyAny>>, name: &str) -> PyResult<Option<i64>
     }
 }
 
-/// The keyword arguments that choose a build, as given (`None`: not given).
-pub struct BuildArgs<'a> {
-    pub preset: Option<&'a str>,
-    pub algorithm: Option<&'a str>,
-    pub axes: Option<&'a str>,
-    pub counting: Option<&'a str>,
-    pub clip: Option<bool>,
+/// The keyword arguments that choose a build, as Python gave them (`None`: not given).
+pub struct BuildArgs<'a, 'py> {
+    pub preset: Option<&'a Bound<'py, PyAny>>,
+    pub algorithm: Option<&'a Bound<'py, PyAny>>,
+    pub axes: Option<&'a Bound<'py, PyAny>>,
+    pub counting: Option<&'a Bound<'py, PyAny>>,
+    pub clip: Option<&'a Bound<'py, PyAny>>,
+    /// Already checked by the thread rule.
     pub threads: Option<usize>,
-    pub bins: Option<i64>,
+    pub bins: Option<&'a Bound<'py, PyAny>>,
 }
 
 /// Options from the constructor's arguments: the preset's (`balanced` when none is named),
 /// with every argument given beside it in its place, and `cost` the remaining keywords.
 /// Ranges are the library's rules (`BuildOptions::validate`), in its words.
 pub fn build_options(
-    args: BuildArgs<'_>,
+    args: BuildArgs<'_, '_>,
     cost: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<BuildOptions> {
-    let preset: Preset = match args.preset {
-        Some(p) => choice("preset", p, Preset::NAMES)?,
+    let preset: Preset = match str_arg(args.preset, "preset")? {
+        Some(p) => choice("preset", &p, Preset::NAMES)?,
         None => Preset::default(),
     };
     let mut o = preset.options();
-    if let Some(a) = args.algorithm {
-        o.algorithm = choice("algorithm", a, Algorithm::NAMES)?;
+    if let Some(a) = str_arg(args.algorithm, "algorithm")? {
+        o.algorithm = choice("algorithm", &a, Algorithm::NAMES)?;
     }
-    if let Some(a) = args.axes {
-        o.axes = choice("axes", a, Axes::NAMES)?;
+    if let Some(a) = str_arg(args.axes, "axes")? {
+        o.axes = choice("axes", &a, Axes::NAMES)?;
     }
-    if let Some(c) = args.counting {
-        o.counting = choice("counting", c, Counting::NAMES)?;
+    if let Some(c) = str_arg(args.counting, "counting")? {
+        o.counting = choice("counting", &c, Counting::NAMES)?;
     }
-    if let Some(clip) = args.clip {
+    if let Some(clip) = bool_arg(args.clip, "clip")? {
         o.clip = clip;
     }
     o.threads = args.threads;
     if let Some(kw) = cost {
         o.cost = cost_model(kw, o.cost)?;
     }
-    if let Some(b) = args.bins {
+    if let Some(b) = int_arg(args.bins, "bins")? {
         o.bins = Some(u32::try_from(b).map_err(|_| {
             PyValueError::new_err(format!(
                 "bins must be 0 (exact SAH) or from 2 to {}, got {b}",

@@ -50,6 +50,8 @@ def test_bad_meshes_are_refused_clearly(vertices, faces, error, message):
 @pytest.mark.parametrize(
     "kwargs, error, message",
     [
+        (dict(preset="fastest"), ValueError, r"preset must be one of 'fast', 'balanced', 'quality', 'paper', 'sweep', got 'fastest'"),
+        (dict(preset=1), TypeError, r"preset must be a string, got int"),
         (dict(algorithm="fast"), ValueError, r"algorithm must be one of 'hybrid', 'sweep', 'level', 'naive', 'median', got 'fast'"),
         (dict(axes="x"), ValueError, r"axes must be one of 'longest', 'all'"),
         (dict(counting="tree"), ValueError, r"counting must be one of 'space-tree', 'scan'"),
@@ -62,12 +64,12 @@ def test_bad_meshes_are_refused_clearly(vertices, faces, error, message):
         (dict(algorithm=1), TypeError, r"algorithm must be a string, got int"),
         (dict(axes=["all"]), TypeError, r"axes must be a string, got list"),
         (dict(clip="yes"), TypeError, r"clip must be True or False, got str"),
-        (dict(traversal=0), ValueError, r"traversal must be a positive finite number"),
-        (dict(intersection=float("nan")), ValueError, r"intersection must be a positive finite number"),
+        (dict(traversal=-1), ValueError, r"traversal cost \(K_T\) must be a finite number of at least 0, got -1"),
+        (dict(intersection=float("nan")), ValueError, r"intersection cost \(K_I\) must be a finite number above 0"),
         (dict(empty_bonus=1.5), ValueError, r"empty_bonus must be in \(0, 1\]"),
         (dict(leaf_size=-1), ValueError, r"leaf_size must be in 0..="),
         (dict(leaf_size=2.5), TypeError, r"leaf_size must be an integer"),
-        (dict(max_depth=61), ValueError, r"max_depth must be in 0..=60"),
+        (dict(max_depth=61), ValueError, r"max_depth must be at most 60, got 61"),
         (dict(max_depth=True), TypeError, r"max_depth must be an integer, not a bool"),
         (dict(max_duplication=0.5), ValueError, r"max_duplication must be a finite number of at least 1"),
         (dict(traversal="fast"), TypeError, r"traversal must be a number"),
@@ -101,6 +103,78 @@ def test_good_options_are_accepted():
     assert sahkd.KdTree(V, F, algorithm="sweep").stats["bins"] == 0
     assert sahkd.KdTree(V, F, algorithm="level").stats["bins"] == 0
     assert sahkd.KdTree(V, F, bins=None).stats["bins"] == 256
+
+
+# The library's edge values for each option (BuildOptions::validate): the last value accepted
+# and the first refused, every door giving the library's answer.
+EDGES = [
+    (dict(traversal=0), True),
+    (dict(traversal=-1e-6), False),
+    (dict(intersection=1e-6), True),
+    (dict(intersection=0), False),
+    (dict(empty_bonus=1), True),
+    (dict(empty_bonus=0), False),
+    (dict(max_duplication=1), True),
+    (dict(max_duplication=0.999), False),
+    (dict(max_depth=60), True),
+    (dict(max_depth=61), False),
+    (dict(leaf_size=0), True),
+    (dict(threads=1), True),
+    (dict(threads=0), False),
+    (dict(bins=0), True),
+    (dict(bins=1), False),
+    (dict(bins=2), True),
+    (dict(bins=1024), True),
+    (dict(bins=1025), False),
+    (dict(algorithm="level", bins=0), True),
+    (dict(algorithm="level", bins=2), False),
+]
+
+
+@pytest.mark.parametrize("kwargs, accepted", EDGES)
+def test_options_at_their_edges_get_the_librarys_answer(kwargs, accepted):
+    if accepted:
+        sahkd.KdTree(V, F, **kwargs)
+        scene = sahkd.Scene()
+        scene.add_mesh(V, F)
+        scene.build(**kwargs)
+    else:
+        with pytest.raises(ValueError):
+            sahkd.KdTree(V, F, **kwargs)
+        scene = sahkd.Scene()
+        scene.add_mesh(V, F)
+        with pytest.raises(ValueError):
+            scene.build(**kwargs)
+
+
+def _structure(tree):
+    nodes, refs = tree._structure()
+    return nodes.tobytes(), refs.tobytes()
+
+
+def test_presets_are_the_librarys_and_arguments_beside_them_override():
+    rng = np.random.default_rng(7)
+    v = rng.random((1500, 3)).astype(np.float32)
+    f = rng.integers(0, 1500, (1500, 3))
+    for name in ["fast", "balanced", "quality", "paper", "sweep"]:
+        assert sahkd.KdTree(v, f, preset=name).stats["preset"] == name
+    assert sahkd.KdTree(v, f).stats["preset"] == "balanced"
+    # Each preset is its options: the same tree given them one by one.
+    quality = sahkd.KdTree(v, f, preset="quality")
+    assert _structure(quality) == _structure(sahkd.KdTree(v, f, axes="all", bins=0, clip=True))
+    sweep = sahkd.KdTree(v, f, preset="sweep")
+    assert sweep.stats["algorithm"] == "sweep" and sweep.stats["bins"] == 0
+    paper = sahkd.KdTree(v, f, preset="paper")
+    assert (paper.stats["algorithm"], paper.stats["clip"]) == ("level", False)
+    # Arguments given beside a preset override it, and the preset is still named.
+    fast = sahkd.KdTree(v, f, preset="fast")
+    fast_clipped = sahkd.KdTree(v, f, preset="fast", clip=True)
+    assert fast.stats["clip"] is False and fast_clipped.stats["clip"] is True
+    assert fast_clipped.stats["preset"] == "fast"
+    assert _structure(fast_clipped) != _structure(fast)
+    assert _structure(fast_clipped) == _structure(
+        sahkd.KdTree(v, f, preset="balanced", bins=fast.stats["bins"], leaf_size=2)
+    )
 
 
 @pytest.mark.parametrize(

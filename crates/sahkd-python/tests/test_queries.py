@@ -263,6 +263,7 @@ def test_stats_report_the_tree_and_its_options():
     assert set(s) == {
         "triangles", "nodes", "leaves", "empty_leaves", "references", "duplication",
         "max_depth", "mean_leaf_size", "sah_cost", "bytes", "build_ms", "presort_ms",
+        "binned_ms", "subtrees_ms", "layout_ms", "preset",
         "algorithm", "axes", "counting", "clip", "threads", "bins",
     }  # fmt: skip
     nodes, refs = tree._structure()

@@ -3,10 +3,11 @@
 //! ```text
 //! cargo run --release -p sahkd --example trace_throughput -- MESH [--camera front|near|auto]
 //!     [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR]
-//!     [--sets primary,shadow,ao,bounce] [--no-count] [--traversal-cost X] [--empty-bonus X]
+//!     [--sets primary,shadow,ao,bounce] [--no-count] [--preset NAME] [--traversal-cost X]
+//!     [--empty-bonus X]
 //! ```
-//! The tree is built with the default options, or the cost model's traversal cost and
-//! empty-space bonus given.
+//! The tree is built with the default options (or the preset named), with the cost model's
+//! traversal cost and empty-space bonus given after it.
 //! Primary rays (closest hit): one per pixel centre of a size x size picture. `front` is the
 //! fixed benchmark camera (bounding-box centre + (0, 0, 2 x diagonal) looking at the centre,
 //! up +y, 45 degree vertical field of view; most rays miss), `near` the same at 0.75 diagonals,
@@ -78,6 +79,13 @@ fn parse_args() -> Result<Args, String> {
             "--dump" => args.dump = Some(value("--dump")?),
             "--sets" => args.sets = Some(value("--sets")?.split(',').map(String::from).collect()),
             "--no-count" => args.count = false,
+            "--preset" => {
+                // Options given before it are replaced by the preset's; give them after it.
+                args.options = value("--preset")?
+                    .parse::<sahkd::Preset>()
+                    .map_err(|e| format!("--preset: {e}"))?
+                    .options()
+            }
             "--traversal-cost" => {
                 args.options.cost.traversal = value("--traversal-cost")?
                     .parse()
@@ -93,7 +101,7 @@ fn parse_args() -> Result<Args, String> {
         }
     }
     if args.mesh.is_empty() {
-        return Err("usage: trace_throughput MESH [--camera front|near|auto] [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR] [--sets primary,shadow,ao,bounce] [--no-count] [--traversal-cost X] [--empty-bonus X]".into());
+        return Err("usage: trace_throughput MESH [--camera front|near|auto] [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR] [--sets primary,shadow,ao,bounce] [--no-count] [--preset NAME] [--traversal-cost X] [--empty-bonus X]".into());
     }
     if args.threads.contains(&0) || args.repeat == 0 || args.size == 0 {
         return Err("--threads, --repeat and --size must be at least 1".into());

@@ -5,19 +5,7 @@
 mod common;
 
 use common::*;
-use sahkd::{build, build_triangles, Algorithm, Axes, BuildOptions, KdTree, Preset};
-
-/// FNV-1a over the tree's node words and references: a fingerprint of the arrays.
-fn fingerprint(tree: &KdTree) -> u64 {
-    let mut h = 0xcbf2_9ce4_8422_2325u64;
-    let words = tree.nodes().iter().flat_map(|n| n.words());
-    for w in words.chain(tree.refs().iter().copied()) {
-        for b in w.to_le_bytes() {
-            h = (h ^ b as u64).wrapping_mul(0x100_0000_01b3);
-        }
-    }
-    h
-}
+use sahkd::{build, build_triangles, Algorithm, Axes, BuildOptions, Preset};
 
 fn on_threads(preset: Preset, threads: usize) -> BuildOptions {
     BuildOptions {

@@ -7,6 +7,18 @@ use sahkd::trace::brute;
 use sahkd::{Aabb, Algorithm, Axes, BuildOptions, Counting, KdTree, Mesh, Ray, Triangle, Vec3};
 use std::path::PathBuf;
 
+/// FNV-1a over the tree's node words and references: a fingerprint of the arrays.
+pub fn fingerprint(tree: &KdTree) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let words = tree.nodes().iter().flat_map(|n| n.words());
+    for w in words.chain(tree.refs().iter().copied()) {
+        for b in w.to_le_bytes() {
+            h = (h ^ b as u64).wrapping_mul(0x100_0000_01b3);
+        }
+    }
+    h
+}
+
 /// The shared scenes folder: `SAHKD_SCENES`, else `../shared/scenes` beside the checkout.
 pub fn scenes_dir() -> Option<PathBuf> {
     let dir = std::env::var_os("SAHKD_SCENES")
