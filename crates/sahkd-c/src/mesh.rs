@@ -113,12 +113,8 @@ pub(crate) fn build_error(e: impl std::fmt::Display) -> crate::Error {
 }
 
 pub(crate) fn meta(options: sahkd::BuildOptions, report: &sahkd::BuildReport) -> TreeMeta {
-    TreeMeta {
-        options,
-        build_ms: report.build_ms,
-        presort_ms: report.presort_ms,
-        build_threads: options.threads.unwrap_or_else(rayon::current_num_threads),
-    }
+    let threads = options.threads.unwrap_or_else(rayon::current_num_threads);
+    TreeMeta::new(options, report, threads)
 }
 
 /// Builds the kd-tree of a mesh; `options` NULL uses the library's defaults.

@@ -51,9 +51,6 @@ struct PyKdTree {
     tree: KdTree,
     meta: Meta,
     stats: OnceLock<TreeStats>,
-    /// The build's phases after the presort (binned top, exact subtrees, layout, in ms), as
-    /// the build reported them; 0 for a tree opened from a file.
-    phases: [f64; 3],
 }
 
 /// Which oracle answers an all-hits query: the tree walk, or every triangle tested.
@@ -105,7 +102,6 @@ impl PyKdTree {
             tree,
             meta,
             stats: OnceLock::new(),
-            phases: [0.0; 3],
         }
     }
 
@@ -285,17 +281,8 @@ impl PyKdTree {
         let built = py
             .detach(|| pool.install(|| sahkd::build_triangles(triangles, &run)))
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        let meta = Meta {
-            options,
-            build_ms: built.report.build_ms,
-            presort_ms: built.report.presort_ms,
-            build_threads: pool.current_num_threads(),
-        };
-        let r = &built.report;
-        Ok(PyKdTree {
-            phases: [r.binned_ms, r.subtrees_ms, r.layout_ms],
-            ..Self::from_tree(built.tree, meta)
-        })
+        let meta = Meta::new(options, &built.report, pool.current_num_threads());
+        Ok(Self::from_tree(built.tree, meta))
     }
 
     /// Number of triangles.
@@ -333,10 +320,9 @@ impl PyKdTree {
         d.set_item("bytes", s.bytes)?;
         d.set_item("build_ms", self.meta.build_ms)?;
         d.set_item("presort_ms", self.meta.presort_ms)?;
-        let [binned, subtrees, layout] = self.phases;
-        d.set_item("binned_ms", binned)?;
-        d.set_item("subtrees_ms", subtrees)?;
-        d.set_item("layout_ms", layout)?;
+        d.set_item("binned_ms", self.meta.binned_ms)?;
+        d.set_item("subtrees_ms", self.meta.subtrees_ms)?;
+        d.set_item("layout_ms", self.meta.layout_ms)?;
         d.set_item("preset", o.preset.map(|p| p.name()))?;
         d.set_item("algorithm", o.algorithm.name())?;
         d.set_item("axes", o.axes.name())?;

@@ -154,8 +154,10 @@ def _structure(tree):
 
 def test_presets_are_the_librarys_and_arguments_beside_them_override():
     rng = np.random.default_rng(7)
-    v = rng.random((1500, 3)).astype(np.float32)
-    f = rng.integers(0, 1500, (1500, 3))
+    # Small triangles scattered in a box: a tree of many nodes, where clipping changes it.
+    centres = rng.random((2000, 1, 3))
+    v = (centres + 0.03 * rng.standard_normal((2000, 3, 3))).reshape(-1, 3).astype(np.float32)
+    f = np.arange(6000).reshape(2000, 3)
     for name in ["fast", "balanced", "quality", "paper", "sweep"]:
         assert sahkd.KdTree(v, f, preset=name).stats["preset"] == name
     assert sahkd.KdTree(v, f).stats["preset"] == "balanced"

@@ -14,6 +14,9 @@ fn meta(options: &BuildOptions) -> TreeMeta {
         options: *options,
         build_ms: 12.345678901234567,
         presort_ms: 0.1,
+        binned_ms: 1.5,
+        subtrees_ms: 7.25,
+        layout_ms: 0.5,
         build_threads: 3,
     }
 }

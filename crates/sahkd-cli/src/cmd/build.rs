@@ -114,12 +114,11 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
     // An invalid tree is reported below, not kept.
     let invalid = matches!(validation, Some(Err(_)));
     if let (Some(path), false) = (&args.save, invalid) {
-        let meta = TreeMeta {
-            options: args.builder.build_options(),
-            build_ms: built.build.report.build_ms,
-            presort_ms: built.build.report.presort_ms,
-            build_threads: builder.threads(),
-        };
+        let meta = TreeMeta::new(
+            args.builder.build_options(),
+            &built.build.report,
+            builder.threads(),
+        );
         let spinner = progress.spinner(format!("saving {}", path.display()));
         let written = built.build.tree.save(path, &meta);
         spinner.finish_and_clear();

@@ -34,7 +34,7 @@
 //! opening stays linear; [`KdTree::validate`] checks it all.
 
 use super::{validate, KdTree, Node};
-use crate::builders::BuildOptions;
+use crate::builders::{BuildOptions, BuildReport};
 use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::{Aabb, Triangle, Vec3};
 use serde_json::{json, Value};
@@ -59,8 +59,28 @@ pub struct TreeMeta {
     pub options: BuildOptions,
     pub build_ms: f64,
     pub presort_ms: f64,
+    /// The build's phases after the presort (`BuildReport`'s binned top, exact subtrees and
+    /// layout); 0 in files from before they were recorded.
+    pub binned_ms: f64,
+    pub subtrees_ms: f64,
+    pub layout_ms: f64,
     /// Worker threads the build ran on.
     pub build_threads: usize,
+}
+
+impl TreeMeta {
+    /// What is stored of a build with `options` that reported `report` on `build_threads`.
+    pub fn new(options: BuildOptions, report: &BuildReport, build_threads: usize) -> TreeMeta {
+        TreeMeta {
+            options,
+            build_ms: report.build_ms,
+            presort_ms: report.presort_ms,
+            binned_ms: report.binned_ms,
+            subtrees_ms: report.subtrees_ms,
+            layout_ms: report.layout_ms,
+            build_threads,
+        }
+    }
 }
 
 /// Why a tree file could not be opened.
@@ -251,6 +271,9 @@ fn meta_json(meta: &TreeMeta) -> String {
         "options": options,
         "build_ms": meta.build_ms,
         "presort_ms": meta.presort_ms,
+        "binned_ms": meta.binned_ms,
+        "subtrees_ms": meta.subtrees_ms,
+        "layout_ms": meta.layout_ms,
         "build_threads": meta.build_threads,
     })
     .to_string()
@@ -456,6 +479,9 @@ fn parse_meta(bytes: &[u8]) -> Result<TreeMeta, String> {
         options,
         build_ms: ms("build_ms"),
         presort_ms: ms("presort_ms"),
+        binned_ms: ms("binned_ms"),
+        subtrees_ms: ms("subtrees_ms"),
+        layout_ms: ms("layout_ms"),
         build_threads: v["build_threads"].as_u64().unwrap_or(0) as usize,
     })
 }
