@@ -28,15 +28,21 @@ pub enum Source {
 }
 
 impl Source {
-    /// A file when the argument names anything that exists (a directory or a device is then
-    /// refused as what it is) or ends in a mesh extension, a scene spec otherwise.
+    /// A saved tree when the argument names a file that starts like one or ends in `.sahkd`;
+    /// a file when it names anything else that exists (a directory or a device is then
+    /// refused as what it is) or ends in a mesh extension; a scene spec otherwise.
     pub fn resolve(arg: &str) -> Source {
         let path = Path::new(arg);
         let mesh_extension = path
             .extension()
             .and_then(|e| e.to_str())
             .is_some_and(|e| e.eq_ignore_ascii_case("ply") || e.eq_ignore_ascii_case("obj"));
-        if path.is_file() && is_tree_file(path) {
+        let tree_extension = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("sahkd"));
+        // A `.sahkd` file that does not start like a tree (empty, cut short) is still read
+        // as one, so that the error says what is wrong with it as a tree.
+        if path.is_file() && (tree_extension || is_tree_file(path)) {
             Source::Tree(path.to_path_buf())
         } else if mesh_extension || path.exists() {
             Source::File(path.to_path_buf())

@@ -70,6 +70,18 @@ fn read_rows(path: &Path, widths: &[u64], expected: &str, noun: &str) -> Result<
         .with_context(|| format!("cannot read {name}"))?
         .len();
     let mut reader = BufReader::new(file);
+    if let Ok(head) = reader.fill_buf() {
+        if let Some(rest) = head.strip_prefix(b"\x93NUMPY") {
+            if let [major, minor, ..] = rest {
+                if !(1..=3).contains(major) {
+                    bail!(
+                        "{name}: .npy format version {major}.{minor}, which this reader does not \
+                         know (it reads versions 1, 2 and 3)"
+                    );
+                }
+            }
+        }
+    }
     // npyz allocates the header's declared length before reading it: a lying length field
     // (up to 4 GiB in versions 2 and 3) must not become an allocation.
     if let Some((length, prefix)) = reader.fill_buf().ok().and_then(header_length) {
@@ -82,7 +94,14 @@ fn read_rows(path: &Path, widths: &[u64], expected: &str, noun: &str) -> Result<
     }
     // npyz multiplies the header's dimensions unchecked (a panic on overflow in debug builds,
     // a wrong count otherwise), so a shape no file could hold is refused before it looks.
-    if let Some((shape, data_start)) = declared_shape(&mut reader) {
+    if let Some((shape, descr, data_start)) = declared_shape(&mut reader) {
+        // Another dtype is refused as such, before its size is judged as float32's.
+        if let Some(other) = descr.as_deref().filter(|d| !is_float32_descr(d)) {
+            bail!(
+                "{name}: expected dtype float32, found {}",
+                describe_descr(other)
+            );
+        }
         let data_bytes = file_bytes.saturating_sub(data_start);
         let fits = shape
             .iter()
@@ -161,9 +180,10 @@ fn header_length(head: &[u8]) -> Option<(usize, usize)> {
     }
 }
 
-/// The `shape` of a .npy header and where its data starts, read without consuming it;
-/// `None` when the header is not one this can read (npyz then reports what is wrong).
-fn declared_shape(reader: &mut BufReader<File>) -> Option<(Vec<u64>, u64)> {
+/// The `shape` of a .npy header, its `descr` when that is a plain type string, and where its
+/// data starts, read without consuming it; `None` when the header is not one this can read
+/// (npyz then reports what is wrong).
+fn declared_shape(reader: &mut BufReader<File>) -> Option<(Vec<u64>, Option<String>, u64)> {
     let head = reader.fill_buf().ok()?;
     let (length, prefix) = header_length(head)?;
     let text = head.get(prefix..)?;
@@ -184,7 +204,43 @@ fn declared_shape(reader: &mut BufReader<File>) -> Option<(Vec<u64>, u64)> {
         .filter(|d| !d.is_empty())
         .map(|d| d.trim_end_matches('L').parse::<u64>().ok())
         .collect::<Option<Vec<u64>>>()?;
-    Some((shape, (prefix + length) as u64))
+    let descr = ["'descr'", "\"descr\""].iter().find_map(|key| {
+        let after = header[header.find(key)? + key.len()..]
+            .trim_start()
+            .strip_prefix(':')?
+            .trim_start();
+        let quote = after.chars().next().filter(|c| *c == '\'' || *c == '"')?;
+        let value = &after[1..];
+        Some(value[..value.find(quote)?].to_string())
+    });
+    Some((shape, descr, (prefix + length) as u64))
+}
+
+/// A plain .npy type string of float32: `<f4`, `>f4`, `=f4` (`|f4` never occurs).
+fn is_float32_descr(descr: &str) -> bool {
+    matches!(descr, "<f4" | ">f4" | "=f4" | "f4")
+}
+
+/// A type string as numpy names its dtype, with the string: `float16 ('<f2')`.
+fn describe_descr(descr: &str) -> String {
+    let code = descr.trim_start_matches(['<', '>', '=', '|']);
+    let mut chars = code.chars();
+    let kind = chars.next().map(String::from).unwrap_or_default();
+    let size = chars.as_str();
+    let bits = size.parse::<u32>().ok().and_then(|n| n.checked_mul(8));
+    let numpy = bits.and_then(|bits| match kind.as_str() {
+        "b" if bits == 8 => Some("bool".to_string()),
+        "i" => Some(format!("int{bits}")),
+        "u" => Some(format!("uint{bits}")),
+        "f" => Some(format!("float{bits}")),
+        "c" => Some(format!("complex{bits}")),
+        _ => None,
+    });
+    let descr = descr.escape_debug();
+    match numpy {
+        Some(n) => format!("{n} ('{descr}')"),
+        None => format!("'{descr}'"),
+    }
 }
 
 /// An error of npyz in one line: a header it cannot parse comes as a multi-line parser

@@ -486,3 +486,18 @@ fn a_failed_archive_write_is_one_error_line() {
     assert!(!err.contains("ZipWriter"), "{err}");
     assert_eq!(entries(dir.path()), ["rays.npy"], "no output, no temporary");
 }
+
+// Messages ------------------------------------------------------------------------------
+
+/// A zero-byte `.sahkd` file was called "unknown mesh format".
+#[test]
+fn an_empty_saved_tree_says_it_is_empty() {
+    let dir = tempfile::tempdir().unwrap();
+    let empty = dir.path().join("tree.sahkd");
+    std::fs::write(&empty, b"").unwrap();
+    fails(
+        &["info", s(&empty)],
+        1,
+        &["tree.sahkd", "not a sahkd tree file: it is empty (0 bytes)"],
+    );
+}

@@ -198,8 +198,13 @@ fn faces_of<T: Index>(
         for (k, &idx) in r.iter().enumerate() {
             let w = idx.wide();
             if !(0..n).contains(&w) {
+                let valid = match n {
+                    0 => "there are no vertices".to_string(),
+                    1 => "the only vertex is 0".to_string(),
+                    _ => format!("valid indices are 0 to {}", n - 1),
+                };
                 return Err(PyValueError::new_err(format!(
-                    "faces[{i}] refers to vertex {w}, but there are only {n} vertices (valid indices are 0..{n})"
+                    "faces[{i}] refers to vertex {w}, but there are only {n} vertices ({valid})"
                 )));
             }
             tri[k] = Vec3(vertices[w as usize]);

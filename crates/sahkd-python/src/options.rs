@@ -65,6 +65,13 @@ pub fn int_arg(v: Option<&Bound<'_, PyAny>>, name: &str) -> PyResult<Option<i64>
                     "{name} must be an integer or None, not a bool"
                 )));
             }
+            if v.is_instance_of::<pyo3::types::PyInt>() {
+                // An int too large for 64 bits is a value out of range, not a wrong type.
+                return v
+                    .extract::<i64>()
+                    .map(Some)
+                    .map_err(|_| PyValueError::new_err(format!("{name} = {v} is out of range")));
+            }
             v.extract::<i64>().map(Some).map_err(|_| {
                 PyTypeError::new_err(format!(
                     "{name} must be an integer or None, got {}",

@@ -381,6 +381,9 @@ impl<'a> Reader<'a> {
 
 fn read(bytes: &[u8]) -> Result<(KdTree, TreeMeta), String> {
     if !bytes.starts_with(MAGIC) {
+        if bytes.is_empty() {
+            return Err("not a sahkd tree file: it is empty (0 bytes)".into());
+        }
         return Err("not a sahkd tree file (it does not start with SAHKDTRE)".into());
     }
     let mut r = Reader { bytes, at: 8 };
