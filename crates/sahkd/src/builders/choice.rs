@@ -21,6 +21,41 @@ impl Ranked {
     }
 }
 
+/// A split plane as every depth-first builder records it (the sweep, its binned top, the
+/// median builder): where, at what cost, and how many primitives each child gets before
+/// clipping. The level builder's flat candidates carry only the children's total, so the
+/// level passes keep their own compact record and rank with [`Ranked`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Split {
+    pub axis: usize,
+    pub pos: f32,
+    pub cost: f32,
+    /// The primitives lying in the plane go left (else right).
+    pub planar_left: bool,
+    /// Primitives on each side, planar ones counted on their side.
+    pub n_left: u32,
+    pub n_right: u32,
+}
+
+impl Split {
+    /// Whether this split is chosen over the best so far, by the builders' one order.
+    #[inline]
+    pub fn beats(&self, other: &Option<Split>) -> bool {
+        match other {
+            None => self.cost.is_finite(),
+            Some(o) => self.ranked().precedes(o.ranked()),
+        }
+    }
+
+    fn ranked(&self) -> Ranked {
+        Ranked {
+            cost: self.cost,
+            pos: self.pos,
+            axis: self.axis,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::Ranked;

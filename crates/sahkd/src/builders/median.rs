@@ -19,6 +19,7 @@
 //! proportion to their primitives. The root can never be an empty-space cut, since the
 //! scene box is the triangles' own box.
 
+use super::choice::Split;
 use super::stitch::{self, Piece};
 use super::sweep::{self, Subtree};
 use super::{BuildOptions, BuiltTree, LevelReport, Primitives};
@@ -52,18 +53,6 @@ struct Pending {
     items: Vec<Item>,
     /// The union of the items' boxes.
     extent: Aabb,
-}
-
-/// How a large node is split.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Split {
-    axis: usize,
-    pos: f32,
-    /// The primitives lying in the plane go left (else right).
-    planar_left: bool,
-    /// Primitives on each side before clipping (clipping can only drop some).
-    n_left: u32,
-    n_right: u32,
 }
 
 /// What became of a large node.
@@ -226,9 +215,8 @@ fn choose_split(node: &Pending, cost: &CostModel, max_depth: u32) -> Option<Spli
         return None;
     }
     let bounds = &node.bounds;
-    let (split, split_cost) = if let Some(cut) = empty_space_cut(bounds, &node.extent, n) {
-        let c = cost.split_cost(bounds, cut.axis, cut.pos, cut.n_left, cut.n_right);
-        (cut, c)
+    let split = if let Some(cut) = empty_space_cut(bounds, &node.extent, n, cost) {
+        cut
     } else {
         let axis = bounds.longest_axis();
         // Halves first, so that coordinates near the largest float do not overflow.
@@ -240,22 +228,22 @@ fn choose_split(node: &Pending, cost: &CostModel, max_depth: u32) -> Option<Spli
         let cost_left = cost.split_cost(bounds, axis, pos, below + planar, above);
         let cost_right = cost.split_cost(bounds, axis, pos, below, above + planar);
         let planar_left = cost_left <= cost_right;
-        let split = Split {
+        Split {
             axis,
             pos,
+            cost: cost_left.min(cost_right),
             planar_left,
             n_left: below + if planar_left { planar } else { 0 },
             n_right: above + if planar_left { 0 } else { planar },
-        };
-        (split, cost_left.min(cost_right))
+        }
     };
-    (split_cost < cost.leaf_cost(n)).then_some(split)
+    (split.cost < cost.leaf_cost(n)).then_some(split)
 }
 
 /// The cut of the largest empty space beyond `EMPTY_SPACE_RATIO` of the node's extent, at
 /// the primitives' extent, all `n` primitives going to the other side (planar ones too).
-/// Ties go to the lower axis, then to the low side.
-fn empty_space_cut(bounds: &Aabb, extent: &Aabb, n: u32) -> Option<Split> {
+/// Ties go to the lower axis, then to the low side. Priced by `cost` as it stands.
+fn empty_space_cut(bounds: &Aabb, extent: &Aabb, n: u32, cost: &CostModel) -> Option<Split> {
     let mut best: Option<(f32, Split)> = None;
     for axis in 0..3 {
         let (lo, hi) = (bounds.lo[axis], bounds.hi[axis]);
@@ -273,6 +261,7 @@ fn empty_space_cut(bounds: &Aabb, extent: &Aabb, n: u32) -> Option<Split> {
                     Split {
                         axis,
                         pos,
+                        cost: cost.split_cost(bounds, axis, pos, n_left, n_right),
                         planar_left: !empty_left,
                         n_left,
                         n_right,

@@ -6,43 +6,11 @@
 //! at or before `p`. The planars at `p` are `P`.
 
 use super::events::{self, kind, plane_bits, pos_bits, Event, END, PLANAR};
-use crate::builders::choice::Ranked;
+pub(super) use crate::builders::choice::Split;
 use crate::builders::event::unordered;
 use crate::builders::Axes;
 use crate::cost::{CostModel, SplitPricer};
 use crate::geometry::Aabb;
-
-/// The cheapest plane of a node.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct Split {
-    pub axis: usize,
-    pub pos: f32,
-    pub cost: f32,
-    /// The primitives lying in the plane go left (else right).
-    pub planar_left: bool,
-    /// Primitives on each side, planar ones counted on their side.
-    pub n_left: u32,
-    pub n_right: u32,
-}
-
-impl Split {
-    /// Whether this split is chosen over the best so far, by the builders' one order.
-    #[inline]
-    pub(super) fn beats(&self, other: &Option<Split>) -> bool {
-        match other {
-            None => self.cost.is_finite(),
-            Some(o) => self.ranked().precedes(o.ranked()),
-        }
-    }
-
-    fn ranked(&self) -> Ranked {
-        Ranked {
-            cost: self.cost,
-            pos: self.pos,
-            axis: self.axis,
-        }
-    }
-}
 
 /// The best split of a node of `n` primitives whose events on each axis are `events`, or
 /// `None` when no candidate plane lies strictly inside `node`.
