@@ -21,6 +21,7 @@ def unit_square() -> tuple[npt.NDArray[np.float32], npt.NDArray[np.int64]]:
 def main() -> None:
     vertices, faces = unit_square()
     tree: sahkd.KdTree = sahkd.KdTree(vertices, faces, algorithm="sweep", threads=1, traversal=45.0)
+    assert len(sahkd.KdTree(vertices, faces, preset="fast", clip=False)) == 2
     assert len(tree) == 2 and tree.bounds.shape == (2, 3) and tree.triangles.shape == (2, 3, 3)
     assert tree.stats["triangles"] == 2
     tree.validate()
@@ -60,7 +61,7 @@ def main() -> None:
     shift = np.eye(4)
     shift[2, 3] = 1.0
     instance: int = scene.add_instance(mesh_id, shift)
-    scene.build(bins=0)
+    scene.build(preset="quality")
     assert len(scene) == 2 and instance == 1
     down = np.array([[0.25, 0.5, 5.0]]), np.array([[0.0, 0.0, -1.0]])
     scene_hits: sahkd.SceneHits = scene.intersect(*down)

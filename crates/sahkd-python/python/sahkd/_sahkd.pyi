@@ -18,6 +18,7 @@ _Path = Union[str, "os.PathLike[str]"]
 _Bound = Union[float, npt.ArrayLike, None]
 _Precision = Literal["f32", "f64"]
 _Inside = Literal["parity", "winding"]
+_Preset = Literal["fast", "balanced", "quality", "paper", "sweep"]
 # Cost keywords: traversal, intersection, empty_bonus, max_duplication (floats), leaf_size,
 # max_depth (ints).
 _Cost = Union[float, int, None]
@@ -30,6 +31,7 @@ class KdTree:
         cls,
         vertices: npt.ArrayLike,
         faces: npt.ArrayLike,
+        preset: Optional[_Preset] = ...,
         algorithm: Optional[str] = ...,
         axes: Optional[str] = ...,
         counting: Optional[str] = ...,
@@ -106,6 +108,7 @@ class Scene:
     def add_instance(self, mesh_id: int, transform: npt.ArrayLike) -> int: ...
     def build(
         self,
+        preset: Optional[_Preset] = ...,
         algorithm: Optional[str] = ...,
         axes: Optional[str] = ...,
         counting: Optional[str] = ...,
