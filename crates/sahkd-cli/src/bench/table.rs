@@ -90,8 +90,8 @@ pub fn markdown(results: &Results) -> String {
          on a GTX 750 Ti, Wald's serial builder on a four-core Intel E3. **sahkd**: this run, \
          parallel builders at {} threads, the sweep at {}. The last three columns are the \
          speed-ups of the level builder (time of the other builder / time of ours). The hybrid \
-         column is sahkd's default builder (level passes at the top, sweep subtrees below; the \
-         sweep's tree), at the parallel builders' thread count.\n",
+         column is sahkd's default builder (binned SAH at the top by default, sweep subtrees below; \
+         the sweep's tree with the same bins), at the parallel builders' thread count.\n",
         s.table_threads("level"),
         s.table_threads("sweep"),
     );

@@ -1,5 +1,6 @@
-//! The hybrid builder: the paper's level passes at the top of the tree, where a few big nodes
-//! hold all the work and only parallelism within a node helps; then, once a level holds
+//! The hybrid builder with exact SAH (`bins` 0; with bins it runs `sweep::binned`'s parallel
+//! top instead, see `build`): the paper's level passes at the top of the tree, where a few
+//! big nodes hold all the work and only parallelism within a node helps; then, once a level holds
 //! enough independent nodes, each node's whole subtree by the sweep on one worker, from the
 //! node's sorted lists as they are (no second sort). The subtrees are placed in the sweep's
 //! own layout (`stitch::depth_first`), so nodes and references come out as the sweep's,

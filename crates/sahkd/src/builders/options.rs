@@ -11,8 +11,10 @@ use std::str::FromStr;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Algorithm {
-    /// The level passes at the top of the tree, then each node's subtree by the sweep on
-    /// one worker: the sweep's tree, on every core.
+    /// Parallel at the top of the tree, then each node's subtree by the sweep on one worker:
+    /// the sweep's tree with the same bins, on every core. With bins (256 unless set) the top
+    /// is the binned search, the two children of each node built at once; with `bins` 0 it
+    /// is the paper's level passes.
     #[default]
     Hybrid,
     /// Wald & Havran 2006: serial, exact SAH over sorted events, O(N log N).

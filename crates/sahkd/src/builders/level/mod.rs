@@ -59,8 +59,9 @@ enum Mode {
     SpaceTree,
     /// Running counts over the position-sorted start/end/planar events.
     Scan,
-    /// Every candidate tests every reference of its node; no sorted lists.
-    Naive,
+    /// Every candidate tests every reference of its node; no sorted lists (the `naive`
+    /// algorithm's counting).
+    BruteForce,
 }
 
 /// What stays fixed over a build.
@@ -143,7 +144,7 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
         false
     }
     match (options.algorithm, options.counting) {
-        (Algorithm::Naive, _) => run::<Span>(prims, options, Mode::Naive, whole).0,
+        (Algorithm::Naive, _) => run::<Span>(prims, options, Mode::BruteForce, whole).0,
         (_, Counting::SpaceTree) => run::<Span>(prims, options, Mode::SpaceTree, whole).0,
         (_, Counting::Scan) => run::<Event>(prims, options, Mode::Scan, whole).0,
     }
@@ -203,7 +204,7 @@ where
         budget: options.cost.reference_budget(n).min(entries::MAX_SLOTS),
     };
     let mut out = BuiltTree::default();
-    let sorted = mode != Mode::Naive;
+    let sorted = mode != Mode::BruteForce;
     let start = Instant::now();
     let mut level = presort::root_level::<E>(prims, sorted);
     if sorted {
@@ -369,7 +370,7 @@ impl Pricing for Level<Span> {
         scratch: &mut Scratch,
         report: &mut LevelReport,
     ) {
-        if mode == Mode::Naive {
+        if mode == Mode::BruteForce {
             let t = Instant::now();
             naive::candidates(self, uses, cands, &mut scratch.naive);
             report.ms.candidates = ms_since(t);
