@@ -64,6 +64,9 @@ impl Rows {
 /// shape and `noun` the rows in error messages.
 fn read_rows(path: &Path, widths: &[u64], expected: &str, noun: &str) -> Result<Rows> {
     let name = path.display();
+    if let Some(what) = sahkd::mesh::not_a_file(path) {
+        bail!("{name}: is {what}, not a .npy file");
+    }
     let file = File::open(path).with_context(|| format!("cannot read {name}"))?;
     let file_bytes = file
         .metadata()

@@ -501,3 +501,45 @@ fn an_empty_saved_tree_says_it_is_empty() {
         &["tree.sahkd", "not a sahkd tree file: it is empty (0 bytes)"],
     );
 }
+
+// Named pipes: refused as what they are, never waited on ---------------------------------
+
+/// A FIFO given as a mesh, a saved tree or a ray file waited forever on its open (no writer)
+/// and, read, a tree through it was "unknown mesh format". Each is refused as a named pipe;
+/// `timeout` turns a hang back into a failure of this test (status 124).
+#[test]
+fn a_named_pipe_is_refused_as_what_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let made = |name: &str| {
+        let path = dir.path().join(name);
+        let ok = Command::new("mkfifo").arg(&path).status();
+        ok.is_ok_and(|s| s.success()).then_some(path)
+    };
+    let (Some(ply), Some(tree), Some(rays)) = (made("f.ply"), made("t.sahkd"), made("r.npy"))
+    else {
+        return eprintln!("skipped: no mkfifo here");
+    };
+    let out = dir.path().join("hits.npz");
+    for (args, named) in [
+        (vec!["info", s(&ply)], &ply),
+        (vec!["info", s(&tree)], &tree),
+        (
+            vec!["trace", "spd:sphere:200", "--rays", s(&rays), "-o", s(&out)],
+            &rays,
+        ),
+    ] {
+        let run = Command::new("timeout")
+            .arg("20")
+            .arg(env!("CARGO_BIN_EXE_sahkd"))
+            .args(&args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+        assert!(
+            err.contains(s(named)) && err.contains("is a named pipe (FIFO)"),
+            "{err}"
+        );
+    }
+}

@@ -88,10 +88,12 @@ impl fmt::Display for MeshError {
 
 impl std::error::Error for MeshError {}
 
-/// What `path` is when it exists but is not a file that can hold a mesh: "a directory",
-/// "a character device" (such as /dev/null). `None` for files and pipes, and for paths
-/// that do not exist (reading them reports that).
-fn not_a_file(path: &Path) -> Option<&'static str> {
+/// What `path` is when it exists but is not a regular file: "a directory", "a character
+/// device" (such as /dev/null), "a named pipe (FIFO)". `None` for regular files and for
+/// paths that do not exist (reading them reports that). Every input file of meshes, trees
+/// and rays is refused by this: opening a named pipe waits for a writer, forever if there
+/// is none, and neither a tree (mapped) nor a .npy file (sized first) can be read from one.
+pub fn not_a_file(path: &Path) -> Option<&'static str> {
     let kind = std::fs::metadata(path).ok()?.file_type();
     if kind.is_file() {
         return None;
@@ -103,7 +105,7 @@ fn not_a_file(path: &Path) -> Option<&'static str> {
     {
         use std::os::unix::fs::FileTypeExt;
         if kind.is_fifo() {
-            return None;
+            return Some("a named pipe (FIFO)");
         }
         if kind.is_char_device() {
             return Some("a character device");

@@ -335,6 +335,12 @@ impl KdTree {
     /// Opens a saved tree by mapping the file into memory: one pass reads and checks it into
     /// the tree's arrays while the checksum is summed on another thread; no builder runs.
     pub fn load(path: &Path) -> Result<(KdTree, TreeMeta), LoadError> {
+        if let Some(what) = crate::mesh::not_a_file(path) {
+            // An I/O error, as opening a directory is: the file is fine, it is not one.
+            return Err(LoadError::Io(std::io::Error::other(format!(
+                "is {what}, not a saved tree"
+            ))));
+        }
         let file = File::open(path)?;
         if file.metadata()?.len() == 0 {
             return Self::from_bytes(&[]);
