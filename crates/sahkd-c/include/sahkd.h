@@ -345,6 +345,14 @@ enum sahkd_status sahkd_tree_count_hits_aos(const struct sahkd_tree *tree,
                                             size_t counts_stride,
                                             uint32_t flags);
 
+// sahkd_tree_count_hits_aos with the rays as separate arrays.
+enum sahkd_status sahkd_tree_count_hits_soa(const struct sahkd_tree *tree,
+                                            const struct sahkd_rays_soa *rays,
+                                            size_t count,
+                                            uint32_t *counts,
+                                            size_t counts_stride,
+                                            uint32_t flags);
+
 // Every hit of `count` rays: the hits of ray i are hits[offsets[i]] up to
 // hits[offsets[i + 1]], each ray's as sahkd_tree_all_hits gives them. `offsets` holds
 // count + 1 entries and `*total` the number of hits; when it exceeds `capacity`, offsets
@@ -353,6 +361,16 @@ enum sahkd_status sahkd_tree_all_hits_aos(const struct sahkd_tree *tree,
                                           const struct sahkd_ray *rays,
                                           size_t count,
                                           size_t ray_stride,
+                                          struct sahkd_hit *hits,
+                                          size_t capacity,
+                                          size_t *offsets,
+                                          size_t *total,
+                                          uint32_t flags);
+
+// sahkd_tree_all_hits_aos with the rays as separate arrays.
+enum sahkd_status sahkd_tree_all_hits_soa(const struct sahkd_tree *tree,
+                                          const struct sahkd_rays_soa *rays,
+                                          size_t count,
                                           struct sahkd_hit *hits,
                                           size_t capacity,
                                           size_t *offsets,

@@ -7,7 +7,7 @@ use crate::mesh::sahkd_tree;
 use crate::scene::sahkd_scene_tree;
 use crate::{error, guard, invalid, sahkd_status, Result};
 use rayon::prelude::*;
-use sahkd::{ClosestPoint, Hit, InsideTest, Ray, SceneClosestPoint, SceneHit, Vec3};
+use sahkd::{ClosestPoint, Hit, InsideTest, KdTree, Ray, SceneClosestPoint, SceneHit, Vec3};
 
 /// `prim` and `geometry` of a miss, and of a point query on an empty mesh.
 pub const SAHKD_INVALID_ID: u32 = u32::MAX;
@@ -574,6 +574,25 @@ pub unsafe extern "C" fn sahkd_tree_count_hits(
     })
 }
 
+/// Hit counts of `rays` into `counts` (shared by the array-of-structures and the
+/// structure-of-arrays call).
+unsafe fn count_hits_many(
+    t: &KdTree,
+    rays: Vec<Ray>,
+    counts: *mut u32,
+    counts_stride: usize,
+    parallel: bool,
+) -> Result<()> {
+    check_out(counts, rays.len(), counts_stride, "counts")?;
+    let one = |r: &Ray| t.all_hits(r).len() as u32;
+    let found = if parallel {
+        rays.par_iter().map(one).collect()
+    } else {
+        rays.iter().map(one).collect()
+    };
+    write_all(counts, counts_stride, found, "counts")
+}
+
 /// sahkd_tree_count_hits for `count` rays, into `counts`, `counts_stride` bytes apart.
 #[no_mangle]
 pub unsafe extern "C" fn sahkd_tree_count_hits_aos(
@@ -589,15 +608,72 @@ pub unsafe extern "C" fn sahkd_tree_count_hits_aos(
         let t = &get(tree, "tree")?.tree;
         let parallel = parallel(flags)?;
         let rays = aos_rays(rays, count, ray_stride)?;
-        check_out(counts, count, counts_stride, "counts")?;
-        let one = |r: &Ray| t.all_hits(r).len() as u32;
-        let found = if parallel {
-            rays.par_iter().map(one).collect()
-        } else {
-            rays.iter().map(one).collect()
-        };
-        write_all(counts, counts_stride, found, "counts")
+        count_hits_many(t, rays, counts, counts_stride, parallel)
     })
+}
+
+/// sahkd_tree_count_hits_aos with the rays as separate arrays.
+#[no_mangle]
+pub unsafe extern "C" fn sahkd_tree_count_hits_soa(
+    tree: *const sahkd_tree,
+    rays: *const sahkd_rays_soa,
+    count: usize,
+    counts: *mut u32,
+    counts_stride: usize,
+    flags: u32,
+) -> sahkd_status {
+    guard(|| {
+        let t = &get(tree, "tree")?.tree;
+        let parallel = parallel(flags)?;
+        let rays = soa_rays(rays, count)?;
+        count_hits_many(t, rays, counts, counts_stride, parallel)
+    })
+}
+
+/// Every hit of `rays`, flattened with offsets (shared by the array-of-structures and the
+/// structure-of-arrays call).
+#[allow(clippy::too_many_arguments)]
+unsafe fn all_hits_many(
+    t: &KdTree,
+    rays: Vec<Ray>,
+    hits: *mut sahkd_hit,
+    capacity: usize,
+    offsets: *mut usize,
+    total: *mut usize,
+    parallel: bool,
+) -> Result<()> {
+    let count = rays.len();
+    let Some(ends) = count.checked_add(1) else {
+        return invalid("count + 1 offsets overflow");
+    };
+    check_out(offsets, ends, 0, "offsets")?;
+    check_out(hits, capacity, 0, "hits")?;
+    let found: Vec<Vec<Hit>> = if parallel {
+        rays.par_iter().map(|r| t.all_hits(r)).collect()
+    } else {
+        rays.iter().map(|r| t.all_hits(r)).collect()
+    };
+    let mut at = 0usize;
+    let mut ends = Vec::with_capacity(count + 1);
+    ends.push(0);
+    for f in &found {
+        at += f.len();
+        ends.push(at);
+    }
+    write_all(offsets, 0, ends, "offsets")?;
+    *total = at;
+    if at > capacity {
+        return error(
+            sahkd_status::SAHKD_ERROR_BUFFER_TOO_SMALL,
+            format!("the rays hit {at} triangles in all; hits holds {capacity}"),
+        );
+    }
+    let flat = found
+        .into_iter()
+        .flatten()
+        .map(|h| tree_hit(Some(h)))
+        .collect();
+    write_all(hits, 0, flat, "hits")
 }
 
 /// Every hit of `count` rays: the hits of ray i are hits[offsets[i]] up to
@@ -621,37 +697,28 @@ pub unsafe extern "C" fn sahkd_tree_all_hits_aos(
         let t = &get(tree, "tree")?.tree;
         let parallel = parallel(flags)?;
         let rays = aos_rays(rays, count, ray_stride)?;
-        let Some(ends) = count.checked_add(1) else {
-            return invalid("count + 1 offsets overflow");
-        };
-        check_out(offsets, ends, 0, "offsets")?;
-        check_out(hits, capacity, 0, "hits")?;
-        let found: Vec<Vec<Hit>> = if parallel {
-            rays.par_iter().map(|r| t.all_hits(r)).collect()
-        } else {
-            rays.iter().map(|r| t.all_hits(r)).collect()
-        };
-        let mut at = 0usize;
-        let mut ends = Vec::with_capacity(count + 1);
-        ends.push(0);
-        for f in &found {
-            at += f.len();
-            ends.push(at);
-        }
-        write_all(offsets, 0, ends, "offsets")?;
-        *total = at;
-        if at > capacity {
-            return error(
-                sahkd_status::SAHKD_ERROR_BUFFER_TOO_SMALL,
-                format!("the rays hit {at} triangles in all; hits holds {capacity}"),
-            );
-        }
-        let flat = found
-            .into_iter()
-            .flatten()
-            .map(|h| tree_hit(Some(h)))
-            .collect();
-        write_all(hits, 0, flat, "hits")
+        all_hits_many(t, rays, hits, capacity, offsets, total, parallel)
+    })
+}
+
+/// sahkd_tree_all_hits_aos with the rays as separate arrays.
+#[no_mangle]
+pub unsafe extern "C" fn sahkd_tree_all_hits_soa(
+    tree: *const sahkd_tree,
+    rays: *const sahkd_rays_soa,
+    count: usize,
+    hits: *mut sahkd_hit,
+    capacity: usize,
+    offsets: *mut usize,
+    total: *mut usize,
+    flags: u32,
+) -> sahkd_status {
+    guard(|| {
+        put(total, 0, "total")?;
+        let t = &get(tree, "tree")?.tree;
+        let parallel = parallel(flags)?;
+        let rays = soa_rays(rays, count)?;
+        all_hits_many(t, rays, hits, capacity, offsets, total, parallel)
     })
 }
 

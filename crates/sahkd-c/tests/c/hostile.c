@@ -431,6 +431,21 @@ int main(void) {
         bool blocked[3] = {false, true, true};
         OK(sahkd_tree_occluded_soa(cube, &columns, 3, blocked, 0, SAHKD_QUERY_PARALLEL));
         EXPECT(blocked[0] && !blocked[1] && !blocked[2]);
+        /* Counts and every hit from the same columns: ray 1 now stops before the cube. */
+        uint32_t soa_counts[3] = {9, 9, 9};
+        OK(sahkd_tree_count_hits_soa(cube, &columns, 3, soa_counts, 0, 0));
+        EXPECT(soa_counts[0] == 2 && soa_counts[1] == 0 && soa_counts[2] == 0);
+        size_t soa_offsets[4], soa_total = 0;
+        sahkd_hit soa_flat[2];
+        EXPECT_ERR(sahkd_tree_all_hits_soa(cube, &columns, 3, soa_flat, 1, soa_offsets,
+                                           &soa_total, SAHKD_QUERY_PARALLEL),
+                   SAHKD_ERROR_BUFFER_TOO_SMALL, "2");
+        OK(sahkd_tree_all_hits_soa(cube, &columns, 3, soa_flat, 2, soa_offsets, &soa_total,
+                                   SAHKD_QUERY_PARALLEL));
+        EXPECT(soa_total == 2 && soa_offsets[1] == 2 && soa_offsets[3] == 2);
+        EXPECT(memcmp(soa_flat, flat, 2 * sizeof flat[0]) == 0);
+        EXPECT_ERR(sahkd_tree_count_hits_soa(cube, NULL, 3, soa_counts, 0, 0), SAHKD_ERROR_NULL,
+                   "rays");
 
         /* Two cubes in a scene, the second moved 3 along x: arrays name the geometry. */
         sahkd_scene *two = NULL;
