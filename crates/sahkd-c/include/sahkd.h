@@ -14,7 +14,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
-// `algorithm`: the level passes at the top, then each subtree by the sweep (the default).
+// `algorithm`: the default; a binned top built in parallel, then exact sweep subtrees
+// (with bins 0: the paper's level passes on top).
 #define SAHKD_ALGORITHM_HYBRID 0
 
 // `algorithm`: Wald & Havran's serial O(N log N) sweep.

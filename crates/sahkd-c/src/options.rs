@@ -7,7 +7,8 @@ use sahkd::{Algorithm, Axes, BuildOptions, CostModel, Counting, Preset};
 use std::ffi::c_char;
 use std::mem::{offset_of, size_of};
 
-/// `algorithm`: the level passes at the top, then each subtree by the sweep (the default).
+/// `algorithm`: the default; a binned top built in parallel, then exact sweep subtrees
+/// (with bins 0: the paper's level passes on top).
 pub const SAHKD_ALGORITHM_HYBRID: u32 = 0;
 /// `algorithm`: Wald & Havran's serial O(N log N) sweep.
 pub const SAHKD_ALGORITHM_SWEEP: u32 = 1;

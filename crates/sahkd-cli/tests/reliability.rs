@@ -70,7 +70,7 @@ fn npy(shape: &str, data: &[f32]) -> Vec<u8> {
 /// One ray straight down onto the unit sphere of `spd:sphere:N`.
 const RAY: [f32; 6] = [0.0, 0.0, 5.0, 0.0, 0.0, -1.0];
 
-// Item 2 ------------------------------------------------------------------------------
+// Lying .npy headers ------------------------------------------------------------------
 
 #[test]
 fn a_lying_npy_header_is_an_error_before_any_allocation() {
@@ -142,7 +142,7 @@ fn an_unparsable_npy_header_is_one_error_line() {
     );
 }
 
-// Item 3 ------------------------------------------------------------------------------
+// Thread counts ------------------------------------------------------------------------
 
 #[test]
 fn thread_counts_beyond_the_cap_are_refused_by_every_command() {
@@ -189,7 +189,7 @@ fn thread_counts_beyond_the_cap_are_refused_by_every_command() {
     succeeds(&["build", "spd:sphere:200", "--threads", &max]);
 }
 
-// Item 4 ------------------------------------------------------------------------------
+// Memory ------------------------------------------------------------------------------
 
 #[test]
 fn a_scene_larger_than_the_memory_is_refused_up_front() {
@@ -202,7 +202,7 @@ fn a_scene_larger_than_the_memory_is_refused_up_front() {
     }
 }
 
-// Item 5 ------------------------------------------------------------------------------
+// Outputs -----------------------------------------------------------------------------
 
 #[test]
 fn outputs_never_overwrite_an_input() {
@@ -265,7 +265,7 @@ fn a_failed_bench_leaves_no_empty_output_folder() {
     assert_eq!(entries(dir.path()), Vec::<String>::new());
 }
 
-// Item 6 ------------------------------------------------------------------------------
+// Meshes read as written ----------------------------------------------------------------
 
 /// `info --json`'s vertex and triangle counts of an OBJ file are the file's: every `v` line is
 /// one vertex, used or not, whichever objects use it (tobj dropped unused vertices and
@@ -297,7 +297,7 @@ fn info_counts_the_vertices_of_an_obj_file_as_written() {
     fails(&["info", s(&bad)], 1, &["bad.obj", "line 5", "vertex 4"]);
 }
 
-// Item 7 ------------------------------------------------------------------------------
+// Inputs that are not meshes, and their messages -----------------------------------------
 
 #[test]
 fn a_directory_or_a_device_given_as_a_mesh_says_what_it_is() {
