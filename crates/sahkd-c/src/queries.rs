@@ -584,11 +584,16 @@ unsafe fn count_hits_many(
     parallel: bool,
 ) -> Result<()> {
     check_out(counts, rays.len(), counts_stride, "counts")?;
-    let one = |r: &Ray| t.all_hits(r).len() as u32;
+    // One hit buffer per worker, reused from ray to ray, as Python's count_hits does.
+    let one = |buf: &mut Vec<Hit>, r: &Ray| {
+        t.all_hits_into(r, buf);
+        buf.len() as u32
+    };
     let found = if parallel {
-        rays.par_iter().map(one).collect()
+        rays.par_iter().map_init(Vec::new, one).collect()
     } else {
-        rays.iter().map(one).collect()
+        let mut buf = Vec::new();
+        rays.iter().map(|r| one(&mut buf, r)).collect()
     };
     write_all(counts, counts_stride, found, "counts")
 }
