@@ -11,7 +11,10 @@ and dragon_res2. Every preset is one warm-up build and `--repeat` timed builds o
 --preset NAME --json` (`build_ms`, the median reported); one thread means `taskset -c 0` and
 `--threads 1`. `sweep` is serial and is timed at one thread only. Embree is timed by
 scripts/embree_build.py in the same run, from the indexed mesh (needs embreex and trimesh in
-the interpreter running this), under `taskset -c 0` for one thread. `--baseline` adds the
+the interpreter running this), under `taskset -c 0` for one thread. `--embree3` adds Embree
+3's build at medium quality (its default) and at high quality (spatial splits, the peer of the
+`quality` preset's clipped splits), timed by scripts/embree3_build.cpp (compiled into target/
+on first use; needs Debian's libembree-dev) on the same indexed mesh. `--baseline` adds the
 serial sweep of another sahkd binary (one built at an older commit, say), to compare sweeps at
 identical trees: its rows must give the same nodes, references and SAH cost; `--baseline-kt K`
 times this binary's sweep again at the baseline's K_T for that comparison. Prints one markdown
@@ -24,8 +27,10 @@ import json
 import os
 import re
 import statistics
+import struct
 import subprocess
 import sys
+import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -74,6 +79,30 @@ def embree(mesh, threads, repeat):
     return tuple(map(float, m.groups()))
 
 
+def embree3_binary():
+    """scripts/embree3_build.cpp compiled into target/, again whenever the source is newer."""
+    source = os.path.join(HERE, "embree3_build.cpp")
+    binary = os.path.join(ROOT, "target", "embree3_build")
+    if not os.path.exists(binary) or os.path.getmtime(binary) < os.path.getmtime(source):
+        run(["c++", "-O2", "-std=c++17", source, "-lembree3", "-o", binary])
+    return binary
+
+
+def embree3(binary, mesh, quality, threads, repeat):
+    """Embree 3's build of `mesh` at `quality`, from the indexed mesh trimesh reads."""
+    sys.path.insert(0, HERE)
+    from embree_build import load_indexed
+
+    vertices, faces = load_indexed(mesh)
+    with tempfile.NamedTemporaryFile(suffix=".bin") as f:
+        f.write(struct.pack("<II", len(vertices), len(faces)))
+        f.write(vertices.astype("<f4").tobytes())
+        f.write(faces.astype("<u4").tobytes())
+        f.flush()
+        out = run(pinned(threads) + [binary, f.name, quality, str(threads), str(repeat)])
+    return tuple(map(float, EMBREE.search(out).groups()))
+
+
 def spread(t):
     return f"{t[0]:.0f} ({t[1]:.0f}-{t[2]:.0f})" if t[0] >= 100 else f"{t[0]:.1f} ({t[1]:.1f}-{t[2]:.1f})"
 
@@ -94,6 +123,8 @@ def main():
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--presets", default=",".join(PRESETS), help="comma-separated preset names")
     p.add_argument("--sahkd", default=os.path.join(ROOT, "target", "release", "sahkd"))
+    p.add_argument("--embree3", action="store_true",
+                   help="add Embree 3's medium and high (spatial-split) builds")
     p.add_argument("--baseline", help="another sahkd binary whose serial sweep is timed beside")
     p.add_argument("--baseline-kt", type=float,
                    help="the baseline's default K_T, where it differs from this binary's: this "
@@ -104,10 +135,13 @@ def main():
           "| SAH cost | nodes | references | phases at 2 threads, ms (top and subtrees: workers' time) |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---|")
     notes = []
+    e3 = embree3_binary() if args.embree3 else None
     for name in args.meshes:
         mesh = os.path.join(scenes, f"{name}.ply")
         before = load()
         bvh = {t: embree(mesh, t, args.repeat) for t in (2, 1)}
+        e3_rows = [(q, {t: embree3(e3, mesh, q, t, args.repeat) for t in (2, 1)})
+                   for q in ("medium", "high")] if e3 else []
         rows = []
         for preset in args.presets.split(","):
             options = ["--preset", preset]
@@ -127,12 +161,21 @@ def main():
         triangles = rows[0][1][1]["triangles"]
         print(f"| {name} ({triangles:,}) | Embree 4 BVH | {spread(bvh[2])} | 1 | {spread(bvh[1])} | 1 "
               f"| (BVH) | | | |", flush=True)
+        for quality, timed in e3_rows:
+            print(f"| | Embree 3 BVH, {quality} quality | {spread(timed[2])} | {timed[2][0] / bvh[2][0]:.2f} "
+                  f"| {spread(timed[1])} | {timed[1][0] / bvh[1][0]:.2f} | (BVH) | | | |", flush=True)
         for builder, timed in rows:
             two, one = timed.get(2), timed[1]
             cells = f"{spread(two['ms'])} | {two['ms'][0] / bvh[2][0]:.2f}" if two else "(serial) | "
             bold = "**" if builder == "balanced" else ""
             print(f"| | {bold}{builder}{bold} | {cells} | {spread(one['ms'])} | {one['ms'][0] / bvh[1][0]:.2f} "
                   f"| {one['sah']:.3f} | {one['nodes']:,} | {one['refs']:,} | {phases(two or one)} |", flush=True)
+        high = dict(e3_rows).get("high")
+        quality = dict(rows).get("quality")
+        if high and quality:
+            notes.append(f"{name}: quality / Embree 3 high quality = "
+                         f"{quality[2]['ms'][0] / high[2][0]:.2f}x at 2 threads, "
+                         f"{quality[1]['ms'][0] / high[1][0]:.2f}x at 1")
         if args.baseline:
             for axes in ["longest", "all"]:
                 mine = f"sweep ({axes}, K_T {args.baseline_kt:g})" if args.baseline_kt is not None \
