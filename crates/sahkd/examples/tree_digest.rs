@@ -1,7 +1,7 @@
 //! A digest of the trees a builder makes, to check that a change keeps them bit-identical.
 //!
 //! `cargo run --release -p sahkd --example tree_digest -- [--algorithm sweep] [--threads 1]
-//! bunny dragon_res2 dragon`
+//! [--bins N] bunny dragon_res2 dragon`
 //!
 //! For each scene and each of `--axes longest|all` x `--clip on|off` it prints one line: an
 //! FNV-1a hash over every node (axis, split-position bits, child index or first reference and
@@ -51,6 +51,7 @@ fn digest(tree: &KdTree) -> u64 {
 fn main() {
     let mut algorithm = Algorithm::Sweep;
     let mut threads = Some(1);
+    let mut bins = None;
     let mut names = Vec::new();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -68,6 +69,15 @@ fn main() {
                     Some(n) => Some(n),
                     None => {
                         eprintln!("error: --threads needs a positive number");
+                        std::process::exit(2)
+                    }
+                }
+            }
+            "--bins" => {
+                bins = match args.next().and_then(|v| v.parse().ok()) {
+                    Some(n) => Some(n),
+                    None => {
+                        eprintln!("error: --bins needs a number (0 for exact events)");
                         std::process::exit(2)
                     }
                 }
@@ -92,6 +102,7 @@ fn main() {
                     axes,
                     clip,
                     threads,
+                    bins,
                     ..BuildOptions::default()
                 };
                 let b = match build_triangles(tris.clone(), &options) {
