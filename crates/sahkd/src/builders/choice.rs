@@ -21,10 +21,9 @@ impl Ranked {
     }
 }
 
-/// A split plane as every depth-first builder records it (the sweep, its binned top, the
-/// median builder): where, at what cost, and how many primitives each child gets before
-/// clipping. The level builder's flat candidates carry only the children's total, so the
-/// level passes keep their own compact record and rank with [`Ranked`].
+/// A split plane as every builder records it (the sweep, its binned top, the median builder,
+/// the level passes): where, at what cost, and how many primitives each child gets before
+/// clipping.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Split {
     pub axis: usize,
@@ -45,6 +44,12 @@ impl Split {
             None => self.cost.is_finite(),
             Some(o) => self.ranked().precedes(o.ranked()),
         }
+    }
+
+    /// References the two children hold before clipping.
+    #[inline]
+    pub fn refs(&self) -> u32 {
+        self.n_left + self.n_right
     }
 
     fn ranked(&self) -> Ranked {

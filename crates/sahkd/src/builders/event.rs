@@ -1,5 +1,5 @@
-//! The one encoding of split events that every builder shares (the sweep, the level passes on
-//! the CPU, the hand-over between them): an event packed in one `u64`, so that sorting and
+//! The one split event type that every builder shares (the sweep, the level passes on the
+//! CPU, the hand-over between them): [`Event`], packed in one `u64`, so that sorting and
 //! merging events is integer work.
 //!
 //! Layout, high to low bits: 32 bits of the position (its [`ordered`] image), 2 bits of kind
@@ -46,37 +46,45 @@ pub(crate) fn plane_bits(pos: f32) -> u32 {
     ordered(pos + 0.0)
 }
 
-/// The packed event.
-#[inline(always)]
-pub(crate) fn pack(pos: f32, kind: u32, id: u32) -> u64 {
-    (plane_bits(pos) as u64) << 32 | (kind as u64) << ID_BITS | id as u64
-}
+/// A split event: one `u64` whose integer order is the event order, so sorting and merging
+/// events is integer work. `Default` is the all-zero event (a scratch value for buffers).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[repr(transparent)]
+pub(crate) struct Event(pub u64);
 
-/// The position's bits: equal exactly for equal positions.
-#[inline(always)]
-pub(crate) fn pos_bits(e: u64) -> u32 {
-    (e >> 32) as u32
-}
+impl Event {
+    /// The event of kind `kind` at `pos` for id `id`.
+    #[inline(always)]
+    pub fn new(pos: f32, kind: u32, id: u32) -> Event {
+        Event((plane_bits(pos) as u64) << 32 | (kind as u64) << ID_BITS | id as u64)
+    }
 
-#[inline(always)]
-pub(crate) fn pos(e: u64) -> f32 {
-    unordered(pos_bits(e))
-}
+    /// The position's bits: equal exactly for equal positions.
+    #[inline(always)]
+    pub fn pos_bits(self) -> u32 {
+        (self.0 >> 32) as u32
+    }
 
-#[inline(always)]
-pub(crate) fn kind(e: u64) -> u32 {
-    ((e >> ID_BITS) & 3) as u32
-}
+    #[inline(always)]
+    pub fn pos(self) -> f32 {
+        unordered(self.pos_bits())
+    }
 
-#[inline(always)]
-pub(crate) fn id(e: u64) -> u32 {
-    (e & ID_MASK) as u32
-}
+    #[inline(always)]
+    pub fn kind(self) -> u32 {
+        ((self.0 >> ID_BITS) & 3) as u32
+    }
 
-/// The same event with another id.
-#[inline(always)]
-pub(crate) fn with_id(e: u64, id: u32) -> u64 {
-    e & !ID_MASK | id as u64
+    #[inline(always)]
+    pub fn id(self) -> u32 {
+        (self.0 & ID_MASK) as u32
+    }
+
+    /// The same event with another id.
+    #[inline(always)]
+    pub fn with_id(self, id: u32) -> Event {
+        Event(self.0 & !ID_MASK | id as u64)
+    }
 }
 
 #[cfg(test)]
@@ -110,15 +118,15 @@ mod tests {
     #[test]
     fn events_order_by_position_then_end_planar_start_then_id() {
         let mut evs = [
-            pack(1.0, START, 0),
-            pack(1.0, END, 5),
-            pack(0.5, START, 9),
-            pack(1.0, PLANAR, 3),
-            pack(-0.0, END, MAX_ID as u32),
-            pack(1.0, END, 2),
+            Event::new(1.0, START, 0),
+            Event::new(1.0, END, 5),
+            Event::new(0.5, START, 9),
+            Event::new(1.0, PLANAR, 3),
+            Event::new(-0.0, END, MAX_ID as u32),
+            Event::new(1.0, END, 2),
         ];
         evs.sort_unstable();
-        let got: Vec<(f32, u32, u32)> = evs.iter().map(|&e| (pos(e), kind(e), id(e))).collect();
+        let got: Vec<(f32, u32, u32)> = evs.iter().map(|e| (e.pos(), e.kind(), e.id())).collect();
         assert_eq!(
             got,
             vec![
@@ -130,7 +138,7 @@ mod tests {
                 (1.0, START, 0)
             ]
         );
-        let moved = with_id(evs[1], 7);
-        assert_eq!((pos(moved), kind(moved), id(moved)), (0.5, START, 7));
+        let moved = evs[1].with_id(7);
+        assert_eq!((moved.pos(), moved.kind(), moved.id()), (0.5, START, 7));
     }
 }

@@ -5,20 +5,25 @@
 //! search and no second pass.
 
 use super::segments::{Prefix, Scatter, Tally};
+use crate::builders::choice::{Ranked, Split};
 use crate::cost::{CostModel, SplitPricer};
 use crate::geometry::Aabb;
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
 
-/// One candidate plane: its position, the node it belongs to and, once counted, its cost.
+/// One candidate plane of the level's flat array: its position, the node it belongs to and,
+/// once counted, what the builders' one [`Split`] records (its axis is the array block's).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Candidate {
     pub pos: f32,
     pub cost: f32,
     /// Index of the node in the level ([`HOLE`] for a slot that holds no candidate).
     pub owner: u32,
-    /// `(L + R + P) << 1 | planar_left`.
-    packed: u32,
+    /// `n_left << 1 | planar_left`: the left child's primitives, planar ones counted on
+    /// their side, and the side they go to.
+    left: u32,
+    /// The right child's primitives, planar ones counted on their side.
+    n_right: u32,
 }
 
 /// The owner of an empty slot (a lo or hi that is not strictly inside its node).
@@ -30,19 +35,32 @@ impl Candidate {
             pos,
             cost: f32::INFINITY,
             owner,
-            packed: 0,
+            left: 0,
+            n_right: 0,
         }
     }
     pub fn hole() -> Self {
         Candidate::new(0.0, HOLE)
     }
-    /// References the two children would hold (before any clipping).
-    pub fn refs(&self) -> u32 {
-        self.packed >> 1
+    /// Where this candidate falls in the builders' one order, on `axis`.
+    #[inline]
+    pub fn ranked(&self, axis: usize) -> Ranked {
+        Ranked {
+            cost: self.cost,
+            pos: self.pos,
+            axis,
+        }
     }
-    /// Whether primitives lying in the plane go to the left child.
-    pub fn planar_left(&self) -> bool {
-        self.packed & 1 == 1
+    /// The split this candidate makes on `axis`.
+    pub fn split(&self, axis: usize) -> Split {
+        Split {
+            axis,
+            pos: self.pos,
+            cost: self.cost,
+            planar_left: self.left & 1 == 1,
+            n_left: self.left >> 1,
+            n_right: self.n_right,
+        }
     }
 }
 
@@ -202,11 +220,17 @@ pub(super) fn price_with(splits: &SplitPricer, pos: f32, owner: u32, c: Counts) 
             (right, false)
         }
     };
+    let (n_left, n_right) = if planar_left {
+        (c.left + c.planar, c.right)
+    } else {
+        (c.left, c.right + c.planar)
+    };
     Candidate {
         pos,
         cost: value,
         owner,
-        packed: (c.left + c.right + c.planar) << 1 | planar_left as u32,
+        left: n_left << 1 | planar_left as u32,
+        n_right,
     }
 }
 

@@ -4,31 +4,16 @@
 use super::candidates::{Candidate, Candidates};
 use super::entries::ListEntry;
 use super::{Context, Level};
-use crate::builders::choice::Ranked;
+use crate::builders::choice::Split;
 use rayon::prelude::*;
-
-/// The split chosen for a node.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct Split {
-    pub axis: usize,
-    pub pos: f32,
-    pub planar_left: bool,
-    /// References of the two children before clipping (L + R + P).
-    pub refs: u32,
-}
 
 /// Candidates of one node on one axis above which the min is itself parallel.
 const PARALLEL_MIN: usize = 1 << 15;
 
 /// Whether candidate `a` (on its axis) is chosen over `b`: the builders' one order.
 #[inline]
-fn better(a: (&Candidate, usize), b: (&Candidate, usize)) -> bool {
-    let rank = |(c, axis): (&Candidate, usize)| Ranked {
-        cost: c.cost,
-        pos: c.pos,
-        axis,
-    };
-    rank(a).precedes(rank(b))
+fn better((a, a_axis): (&Candidate, usize), (b, b_axis): (&Candidate, usize)) -> bool {
+    a.ranked(a_axis).precedes(b.ranked(b_axis))
 }
 
 fn min_of<'a>(
@@ -77,12 +62,7 @@ pub(super) fn decide<E: ListEntry>(
                 best = min_of(best, local);
             }
             let (c, axis) = best?;
-            (c.cost < ctx.cost.leaf_cost(level.refs(k))).then_some(Split {
-                axis,
-                pos: c.pos,
-                planar_left: c.planar_left(),
-                refs: c.refs(),
-            })
+            (c.cost < ctx.cost.leaf_cost(level.refs(k))).then(|| c.split(axis))
         })
         .collect_into_vec(splits);
 }

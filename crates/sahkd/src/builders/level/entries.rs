@@ -7,7 +7,7 @@
 //! (every partition is stable), so ordering ties by slot is ordering them by primitive index.
 
 use crate::builders::event;
-pub(super) use crate::builders::event::{ordered, END, PLANAR, START};
+pub(super) use crate::builders::event::{ordered, Event, END, PLANAR, START};
 
 /// Bits of a slot: the shared event encoding's id bits.
 pub(super) const SLOT_BITS: u32 = event::ID_BITS;
@@ -79,39 +79,14 @@ impl ListEntry for Span {
     }
 }
 
-/// A split event in the shared encoding ([`crate::builders::event`]), its id the reference's
-/// level slot.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub(super) struct Event(pub u64);
-
-impl Event {
-    #[inline(always)]
-    pub fn new(pos: f32, kind: u32, slot: u32) -> Event {
-        Event(event::pack(pos, kind, slot))
-    }
-    #[inline(always)]
-    pub fn pos(self) -> f32 {
-        event::pos(self.0)
-    }
-    /// The position's [`ordered`] bits: equal exactly for equal positions.
-    #[inline(always)]
-    pub fn pos_bits(self) -> u32 {
-        event::pos_bits(self.0)
-    }
-    #[inline(always)]
-    pub fn kind(self) -> u32 {
-        event::kind(self.0)
-    }
-}
-
 impl ListEntry for Event {
     #[inline(always)]
     fn slot(self) -> u32 {
-        event::id(self.0)
+        self.id()
     }
     #[inline(always)]
     fn with_slot(self, slot: u32) -> Self {
-        Event(event::with_id(self.0, slot))
+        self.with_id(slot)
     }
     #[inline(always)]
     fn key(self) -> u64 {

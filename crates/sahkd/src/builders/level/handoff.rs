@@ -2,7 +2,7 @@
 //!
 //! Each node of the level becomes the root of a subtree that one worker builds with the
 //! sweep. Its sorted lists are already the sweep's events (the same packed encoding, see
-//! [`entries::Event`]) with level slots where the sweep wants the node's own primitive
+//! [`crate::builders::event::Event`]) with level slots where the sweep wants the node's own primitive
 //! indices; slots keep the primitives' order within a node, so renumbering them from 0 keeps
 //! every list sorted and the hand-over is linear, with no sort.
 
@@ -24,7 +24,7 @@ pub(crate) struct FrontierNode<'a> {
     /// The node's primitives; the sweep's primitive `i` is `prims[i]`.
     pub prims: &'a [u32],
     /// Per axis, the node's events with primitives numbered as in `prims`, sorted.
-    pub events: [Vec<u64>; 3],
+    pub events: [Vec<Event>; 3],
 }
 
 impl Frontier {
@@ -50,7 +50,7 @@ impl Frontier {
             let starts = &level.list_starts[axis];
             level.lists[axis][starts[k] as usize..starts[k + 1] as usize]
                 .iter()
-                .map(|e| e.with_slot(e.slot() - first).0)
+                .map(|e| e.with_slot(e.slot() - first))
                 .collect()
         });
         FrontierNode {

@@ -44,6 +44,7 @@ mod space_tree;
 
 pub(crate) use handoff::Frontier;
 
+use super::choice::Split;
 use super::{Algorithm, Axes, BuildOptions, BuiltTree, Counting, LevelReport, Primitives};
 use crate::cost::CostModel;
 use crate::geometry::{Aabb, Triangle};
@@ -225,15 +226,19 @@ where
             references: level.prims.len(),
             ..LevelReport::default()
         };
-        let mut uses = std::mem::take(&mut scratch.uses);
-        axes_in_use(&level, &ctx, &mut uses);
-        let mut cands = std::mem::take(&mut scratch.candidates);
-        level.price(mode, &uses, &ctx, &mut cands, &mut scratch, &mut report);
-        report.candidates = cands.priced;
+        axes_in_use(&level, &ctx, &mut scratch.uses);
+        level.price(mode, &ctx, &mut scratch, &mut report);
+        report.candidates = scratch.candidates.priced;
 
         let t = Instant::now();
         let mut splits = std::mem::take(&mut scratch.splits);
-        decision::decide(&level, &uses, &cands, &ctx, &mut splits);
+        decision::decide(
+            &level,
+            &scratch.uses,
+            &scratch.candidates,
+            &ctx,
+            &mut splits,
+        );
         // The reference budget, breadth first: the references already in leaves, this level's
         // leaves and the next level's (before clipping, which only removes) must fit, or the
         // whole level becomes leaves.
@@ -242,7 +247,7 @@ where
             .with_min_len(4096)
             .map(|k| match &splits[k] {
                 None => (1, level.refs(k) as usize, 0),
-                Some(s) => (0, 0, s.refs as usize),
+                Some(s) => (0, 0, s.refs() as usize),
             })
             .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
         report.leaves = leaves;
@@ -252,8 +257,6 @@ where
             report.leaves = level.nodes();
         }
         report.ms.decision = ms_since(t);
-        scratch.candidates = cands;
-        scratch.uses = uses;
 
         let t = Instant::now();
         let more = partition::partition(
@@ -283,7 +286,7 @@ where
 /// References clipping removed from the children of the level's split nodes (`next` is the
 /// level they make).
 fn clipped_away<E: ListEntry>(
-    splits: &[Option<decision::Split>],
+    splits: &[Option<Split>],
     work: &partition::Work,
     next: &Level<E>,
 ) -> usize {
@@ -293,7 +296,7 @@ fn clipped_away<E: ListEntry>(
         .map(|k| match splits[k] {
             Some(s) => {
                 let c = work.left_child(k);
-                (s.refs - next.refs(c) - next.refs(c + 1)) as usize
+                (s.refs() - next.refs(c) - next.refs(c + 1)) as usize
             }
             None => 0,
         })
@@ -330,7 +333,7 @@ struct Scratch {
     naive: naive::Extents,
     /// Per node: the axes priced, and the decision.
     uses: Vec<u8>,
-    splits: Vec<Option<decision::Split>>,
+    splits: Vec<Option<Split>>,
     /// The partition's arrays.
     work: partition::Work,
 }
@@ -342,40 +345,32 @@ impl Scratch {
             + self.trees.capacity() * size_of::<space_tree::TreeNode>()
             + self.naive.bytes()
             + self.uses.capacity()
-            + self.splits.capacity() * size_of::<Option<decision::Split>>()
+            + self.splits.capacity() * size_of::<Option<Split>>()
             + self.work.bytes()
     }
 }
 
-/// Phases 1-3 for one kind of list: the level's candidates with their costs.
+/// Phases 1-3 for one kind of list: the level's candidates with their costs, into
+/// `scratch.candidates`, for the axes `scratch.uses` names.
 trait Pricing {
-    fn price(
-        &self,
-        mode: Mode,
-        uses: &[u8],
-        ctx: &Context,
-        cands: &mut Candidates,
-        scratch: &mut Scratch,
-        report: &mut LevelReport,
-    );
+    fn price(&self, mode: Mode, ctx: &Context, scratch: &mut Scratch, report: &mut LevelReport);
 }
 
 impl Pricing for Level<Span> {
-    fn price(
-        &self,
-        mode: Mode,
-        uses: &[u8],
-        ctx: &Context,
-        cands: &mut Candidates,
-        scratch: &mut Scratch,
-        report: &mut LevelReport,
-    ) {
+    fn price(&self, mode: Mode, ctx: &Context, scratch: &mut Scratch, report: &mut LevelReport) {
+        let Scratch {
+            candidates: cands,
+            uses,
+            naive,
+            trees,
+            ..
+        } = scratch;
         if mode == Mode::BruteForce {
             let t = Instant::now();
-            naive::candidates(self, uses, cands, &mut scratch.naive);
+            naive::candidates(self, uses, cands, naive);
             report.ms.candidates = ms_since(t);
             let t = Instant::now();
-            cands.priced = naive::count(self, cands, &scratch.naive, &ctx.cost);
+            cands.priced = naive::count(self, cands, naive, &ctx.cost);
             report.ms.counting = ms_since(t);
             return;
         }
@@ -384,10 +379,10 @@ impl Pricing for Level<Span> {
         report.ms.candidates = ms_since(t);
         let t = Instant::now();
         let all = ctx.axes == Axes::All;
-        space_tree::build_trees(self, uses, all, &mut scratch.trees);
+        space_tree::build_trees(self, uses, all, trees);
         report.ms.space_trees = ms_since(t);
         let t = Instant::now();
-        let (priced, steps, cut) = space_tree::count(self, cands, &scratch.trees, all, &ctx.cost);
+        let (priced, steps, cut) = space_tree::count(self, cands, trees, all, &ctx.cost);
         cands.priced = priced;
         report.walk_steps = steps;
         report.cut_primitives = cut;
@@ -396,15 +391,24 @@ impl Pricing for Level<Span> {
 }
 
 impl Pricing for Level<Event> {
-    fn price(
-        &self,
-        _mode: Mode,
-        uses: &[u8],
-        ctx: &Context,
-        cands: &mut Candidates,
-        _scratch: &mut Scratch,
-        report: &mut LevelReport,
-    ) {
-        scan::price(self, uses, &ctx.cost, cands, report)
+    fn price(&self, _mode: Mode, ctx: &Context, scratch: &mut Scratch, report: &mut LevelReport) {
+        let cands = &mut scratch.candidates;
+        scan::price(self, &scratch.uses, &ctx.cost, cands, report)
+    }
+}
+
+/// A small deterministic generator for the level's unit tests.
+#[cfg(test)]
+struct Lcg(u64);
+
+#[cfg(test)]
+impl Lcg {
+    /// The next value in `0..m`.
+    fn next(&mut self, m: u32) -> u32 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((self.0 >> 33) % m as u64) as u32
     }
 }

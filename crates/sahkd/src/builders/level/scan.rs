@@ -20,7 +20,6 @@ use super::candidates::{self, Candidate, Candidates, Counts};
 use super::entries::{Event, END, PLANAR, START};
 use super::segments::CHUNK;
 use super::{ms_since, Level};
-use crate::builders::choice::Ranked;
 use crate::builders::LevelReport;
 use crate::cost::{CostModel, SplitPricer};
 use crate::geometry::Aabb;
@@ -102,13 +101,8 @@ impl Found {
     /// The candidate kept, by the builders' one order (all on one axis here).
     fn offer(&mut self, c: Candidate) {
         self.priced += 1;
-        let rank = |c: &Candidate| Ranked {
-            cost: c.cost,
-            pos: c.pos,
-            axis: 0,
-        };
         match &self.best {
-            Some(b) if !rank(&c).precedes(rank(b)) => {}
+            Some(b) if !c.ranked(0).precedes(b.ranked(0)) => {}
             _ => self.best = Some(c),
         }
     }
@@ -246,7 +240,7 @@ mod tests {
                 sweep(&events, 0, events.len(), [0; 3], &node)
             };
             let b = f.best.expect("a best candidate");
-            (f.priced, b.pos, b.cost, b.refs(), b.planar_left())
+            (f.priced, b.split(1))
         };
         assert_eq!(run(true), run(false));
     }

@@ -266,17 +266,7 @@ pub(super) fn count(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self, m: u32) -> u32 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((self.0 >> 33) % m as u64) as u32
-        }
-    }
+    use crate::builders::level::Lcg;
 
     fn direct(spans: &[Span], p: f32) -> (Counts, u32) {
         let mut c = Counts::default();

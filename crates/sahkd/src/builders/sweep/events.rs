@@ -1,20 +1,14 @@
-//! The sweep's event lists: events in the shared encoding of [`crate::builders::event`] (id =
-//! the primitive's index in the sweep's numbering), made, merged and sorted.
+//! The sweep's event lists: the builders' one [`Event`] (id = the primitive's index in the
+//! sweep's numbering), made, merged and sorted.
 
-pub(super) use crate::builders::event::{kind, plane_bits, pos_bits, END, PLANAR, START};
-use crate::builders::event::{pack, ID_BITS};
+use crate::builders::event::ID_BITS;
+pub(crate) use crate::builders::event::{plane_bits, Event, END, PLANAR, START};
 use crate::geometry::Aabb;
 
-pub(crate) type Event = u64;
-
-#[inline(always)]
-pub(super) fn event(pos: f32, kind: u32, prim: u32) -> Event {
-    pack(pos, kind, prim)
-}
-
+/// The event's primitive, as an index.
 #[inline(always)]
 pub(super) fn prim(e: Event) -> usize {
-    crate::builders::event::id(e) as usize
+    e.id() as usize
 }
 
 /// Appends the events of `prim`'s box on `axis`: one planar event for a flat box, else a
@@ -23,10 +17,10 @@ pub(super) fn prim(e: Event) -> usize {
 pub(super) fn push_box(out: &mut Vec<Event>, axis: usize, b: &Aabb, prim: u32) {
     let (lo, hi) = (b.lo[axis], b.hi[axis]);
     if lo == hi {
-        out.push(event(lo, PLANAR, prim));
+        out.push(Event::new(lo, PLANAR, prim));
     } else {
-        out.push(event(lo, START, prim));
-        out.push(event(hi, END, prim));
+        out.push(Event::new(lo, START, prim));
+        out.push(Event::new(hi, END, prim));
     }
 }
 
@@ -82,7 +76,7 @@ pub(super) fn merge_into(out: &mut Vec<Event>, mut a: &[Event], b: &[Event]) {
 pub(super) fn merge_in_place(list: &mut Vec<Event>, start: usize, b: &[Event]) {
     let mut i = list.len();
     let galloping = b.len() * 16 <= i - start;
-    list.resize(list.len() + b.len(), 0);
+    list.resize(list.len() + b.len(), Event::default());
     let mut w = list.len();
     for &e in b.iter().rev() {
         if galloping {
@@ -114,12 +108,12 @@ pub(super) fn sort_prim_ordered(events: &mut Vec<Event>, scratch: &mut Vec<Event
         return;
     }
     scratch.clear();
-    scratch.resize(events.len(), 0);
+    scratch.resize(events.len(), Event::default());
     for (shift, width) in DIGITS {
         let mask = (1u64 << width) - 1;
         let mut offsets = vec![0usize; 1 << width];
         for &e in events.iter() {
-            offsets[((e >> shift) & mask) as usize] += 1;
+            offsets[((e.0 >> shift) & mask) as usize] += 1;
         }
         let mut sum = 0;
         for o in offsets.iter_mut() {
@@ -128,7 +122,7 @@ pub(super) fn sort_prim_ordered(events: &mut Vec<Event>, scratch: &mut Vec<Event
             sum += c;
         }
         for &e in events.iter() {
-            let d = ((e >> shift) & mask) as usize;
+            let d = ((e.0 >> shift) & mask) as usize;
             scratch[offsets[d]] = e;
             offsets[d] += 1;
         }
@@ -153,7 +147,7 @@ mod tests {
         for prim in 0..5000u32 {
             // Few distinct positions, so that kinds and prims decide many comparisons.
             let pos = (next() % 40) as f32 - 20.0;
-            events.push(event(pos, (next() % 3) as u32, prim));
+            events.push(Event::new(pos, (next() % 3) as u32, prim));
         }
         let mut expected = events.clone();
         expected.sort_unstable();
@@ -164,19 +158,19 @@ mod tests {
     #[test]
     fn merge_interleaves_short_and_long_lists() {
         for long in [10u32, 100] {
-            let a: Vec<Event> = (0..long).map(|i| event(i as f32, START, i)).collect();
+            let a: Vec<Event> = (0..long).map(|i| Event::new(i as f32, START, i)).collect();
             let b = vec![
-                event(-1.0, END, 200),
-                event(3.0, END, 201),
-                event(9.5, PLANAR, 202),
-                event(1e9, START, 203),
+                Event::new(-1.0, END, 200),
+                Event::new(3.0, END, 201),
+                Event::new(9.5, PLANAR, 202),
+                Event::new(1e9, START, 203),
             ];
-            let mut out = vec![event(-5.0, START, 300)];
+            let mut out = vec![Event::new(-5.0, START, 300)];
             merge_into(&mut out, &a, &b);
-            let mut expected = [vec![event(-5.0, START, 300)], a.clone(), b.clone()].concat();
+            let mut expected = [vec![Event::new(-5.0, START, 300)], a.clone(), b.clone()].concat();
             expected.sort_unstable();
             assert_eq!(out, expected);
-            let mut in_place = vec![event(-5.0, START, 300)];
+            let mut in_place = vec![Event::new(-5.0, START, 300)];
             in_place.extend_from_slice(&a);
             merge_in_place(&mut in_place, 1, &b);
             assert_eq!(in_place, expected);

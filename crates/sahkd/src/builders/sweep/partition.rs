@@ -8,7 +8,7 @@
 //! on, straddlers' events are dropped from the split and re-made from their boxes clipped to
 //! each child; these few are sorted and merged into the stable split.
 
-use super::events::{self, kind, pos_bits, prim, Event, END, PLANAR, START};
+use super::events::{self, prim, Event, END, PLANAR, START};
 use super::search::Split;
 use crate::clip::clipped_halves;
 use crate::geometry::{Aabb, Triangle};
@@ -89,7 +89,7 @@ impl Workspace {
         out.extend(
             self.arena[0][seg[0]..]
                 .iter()
-                .filter(|&&e| kind(e) != END)
+                .filter(|&&e| e.kind() != END)
                 .map(|&e| prim(e) as u32),
         );
     }
@@ -177,8 +177,8 @@ impl Workspace {
     fn classify(&mut self, start: usize, split: &Split) {
         let plane = events::plane_bits(split.pos);
         let events = &self.arena[split.axis][start..];
-        let before = events.partition_point(|&e| pos_bits(e) < plane);
-        let at = before + events[before..].partition_point(|&e| pos_bits(e) == plane);
+        let before = events.partition_point(|&e| e.pos_bits() < plane);
+        let at = before + events[before..].partition_point(|&e| e.pos_bits() == plane);
         if self.straddlers.len() < events.len() / 2 {
             self.straddlers.resize(events.len() / 2, 0);
         }
@@ -187,19 +187,19 @@ impl Workspace {
         // START is 2 and END and PLANAR are below it, so `LEFT | (kind & 2)` is BOTH or LEFT.
         const _: () = assert!(START == 2 && END < 2 && PLANAR < 2);
         for &e in &events[..before] {
-            side[prim(e)] = LEFT | (kind(e) as u8 & 2);
+            side[prim(e)] = LEFT | (e.kind() as u8 & 2);
         }
         // In the plane: an end is left only, a start right only, a planar on its chosen side.
         let planar_side = if split.planar_left { LEFT } else { RIGHT };
         for &e in &events[before..at] {
-            side[prim(e)] = [LEFT, planar_side, RIGHT][kind(e) as usize];
+            side[prim(e)] = [LEFT, planar_side, RIGHT][e.kind() as usize];
         }
         // After the plane: starts and planars are right only; an end leaves its primitive's
         // side as its start set it, and is a straddler's when that start was before the plane.
         // Straddlers have two events, so there are at most half as many as events.
         let mut count = 0;
         for &e in &events[at..] {
-            let (p, k) = (prim(e), kind(e));
+            let (p, k) = (prim(e), e.kind());
             let old = side[p];
             side[p] = if k == END { old } else { RIGHT };
             straddlers[count] = p as u32;
@@ -218,7 +218,7 @@ impl Workspace {
         let list = &mut self.arena[axis];
         let len = list.len() - start;
         if self.tmp_left.len() < len {
-            self.tmp_left.resize(len, 0);
+            self.tmp_left.resize(len, Event::default());
         }
         let tl = &mut self.tmp_left[..len];
         let parent = &mut list[start..];
@@ -260,7 +260,7 @@ impl Workspace {
 }
 
 fn count_prims(events: &[Event]) -> usize {
-    events.iter().filter(|&&e| kind(e) != END).count()
+    events.iter().filter(|&&e| e.kind() != END).count()
 }
 
 #[cfg(test)]

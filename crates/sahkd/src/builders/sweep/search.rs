@@ -5,7 +5,7 @@
 //! `p` are the primitives with `lo < p`; `R` starts at `n` and drops by the ends and planars
 //! at or before `p`. The planars at `p` are `P`.
 
-use super::events::{self, kind, plane_bits, pos_bits, Event, END, PLANAR};
+use super::events::{self, plane_bits, Event, END, PLANAR};
 pub(super) use crate::builders::choice::Split;
 use crate::builders::event::unordered;
 use crate::builders::Axes;
@@ -88,13 +88,13 @@ fn sweep_axis<const AXIS: usize>(
     let (mut below, mut above) = (0u32, n);
     let mut i = 0;
     while i < events.len() {
-        let key = pos_bits(events[i]);
+        let key = events[i].pos_bits();
         // Ends (low half) and planars (high half) of the group, counted in one register so
         // that the hot loop does no stores; starts are the rest of the group.
         let group_start = i;
         let mut packed = 0u64;
-        while i < events.len() && pos_bits(events[i]) == key {
-            let k = kind(events[i]);
+        while i < events.len() && events[i].pos_bits() == key {
+            let k = events[i].kind();
             packed += (k == END) as u64 | ((k == PLANAR) as u64) << 32;
             i += 1;
         }

@@ -3,7 +3,7 @@
 //! own and merged in.
 
 use super::{Clipped, Work, NONE};
-use crate::builders::level::decision::Split;
+use crate::builders::choice::Split;
 use crate::builders::level::entries::ListEntry;
 use crate::builders::level::segments::{Scatter, CHUNK};
 use crate::builders::level::Level;
@@ -230,17 +230,7 @@ fn split_chunks<E: ListEntry>(
 mod tests {
     use super::*;
     use crate::builders::level::entries::Event;
-
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self, m: u32) -> u32 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((self.0 >> 33) % m as u64) as u32
-        }
-    }
+    use crate::builders::level::Lcg;
 
     /// A parent list, where each reference goes (order-preserving new slots per child, some
     /// dropped, some to both), and clipped entries for each child; the expected children are

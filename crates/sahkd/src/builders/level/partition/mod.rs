@@ -28,10 +28,10 @@ mod refs;
 
 pub(super) use refs::flat_mask;
 
-use super::decision::Split;
 use super::entries::ListEntry;
 use super::segments::{filled, Scatter};
 use super::{Context, Level};
+use crate::builders::choice::Split;
 use crate::builders::BuiltTree;
 use crate::geometry::Aabb;
 use lists::partition_lists;

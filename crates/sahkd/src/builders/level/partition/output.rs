@@ -2,7 +2,7 @@
 //! references, placed by one scan over the nodes.
 
 use super::{Work, NONE};
-use crate::builders::level::decision::Split;
+use crate::builders::choice::Split;
 use crate::builders::level::entries::ListEntry;
 use crate::builders::level::segments::{filled, Prefix, Scatter, Tally};
 use crate::builders::level::Level;

@@ -4,7 +4,7 @@
 
 use super::lists::PARALLEL_SPLIT;
 use super::{Clipped, Work, NONE};
-use crate::builders::level::decision::Split;
+use crate::builders::choice::Split;
 use crate::builders::level::entries::ListEntry;
 use crate::builders::level::segments::{
     carries, filled, par_chunks, Cursor, Prefix, Scatter, Tally, CHUNK,
