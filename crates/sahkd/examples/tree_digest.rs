@@ -1,14 +1,14 @@
 //! A digest of the trees a builder makes, to check that a change keeps them bit-identical.
 //!
 //! `cargo run --release -p sahkd --example tree_digest -- [--algorithm sweep] [--threads 1]
-//! [--bins N] bunny dragon_res2 dragon`
+//! [--bins N] [--counting space-tree] bunny dragon_res2 dragon`
 //!
 //! For each scene and each of `--axes longest|all` x `--clip on|off` it prints one line: an
 //! FNV-1a hash over every node (axis, split-position bits, child index or first reference and
 //! count) and every reference, then the node and reference counts and the build time. Scenes
 //! are read from `$SAHKD_SCENES` or `../shared/scenes` (relative to the workspace).
 
-use sahkd::{build_triangles, Algorithm, Axes, BuildOptions, KdTree, Mesh};
+use sahkd::{build_triangles, Algorithm, Axes, BuildOptions, Counting, KdTree, Mesh};
 use std::path::PathBuf;
 
 fn scenes_dir() -> PathBuf {
@@ -52,6 +52,7 @@ fn main() {
     let mut algorithm = Algorithm::Sweep;
     let mut threads = Some(1);
     let mut bins = None;
+    let mut counting = Counting::default();
     let mut names = Vec::new();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -72,6 +73,14 @@ fn main() {
                         std::process::exit(2)
                     }
                 }
+            }
+            "--counting" => {
+                let name = args.next().unwrap_or_default();
+                counting = serde_json::from_value(serde_json::Value::String(name.clone()))
+                    .unwrap_or_else(|_| {
+                        eprintln!("error: unknown --counting {name}");
+                        std::process::exit(2)
+                    });
             }
             "--bins" => {
                 bins = match args.next().and_then(|v| v.parse().ok()) {
@@ -103,6 +112,7 @@ fn main() {
                     clip,
                     threads,
                     bins,
+                    counting,
                     ..BuildOptions::default()
                 };
                 let b = match build_triangles(tris.clone(), &options) {
