@@ -235,7 +235,9 @@ pub fn build(
     build_with(gpu, triangles, options, Presort::Auto)
 }
 
-/// [`build`], with the presort on the host or on the device as `presort` says.
+/// [`build`], with the presort on the host or on the device as `presort` says. Three phases:
+/// the root level presorted and uploaded ([`upload`]), the level loop on the device
+/// ([`Builder::build_levels`]), the finished tree brought down ([`Builder::download`]).
 pub fn build_with(
     gpu: &Gpu,
     triangles: Vec<Triangle>,
@@ -244,7 +246,7 @@ pub fn build_with(
 ) -> Result<GpuBuild, GpuError> {
     check_options(options).map_err(GpuError::Runtime)?;
     let start = Instant::now();
-    let mut report = GpuReport {
+    let report = GpuReport {
         adapter: gpu.describe(),
         phase_ms: vec![0.0; PHASES.len()],
         ..GpuReport::default()
@@ -255,12 +257,39 @@ pub fn build_with(
             report,
         });
     }
-    let n = triangles.len();
-    let cost = options.cost;
     let prim_boxes: Vec<Aabb> = triangles.iter().map(triangle_bounds).collect();
     let bounds = prim_boxes.iter().fold(Aabb::EMPTY, |b, &t| b.union(t));
-    let budget = cost.reference_budget(n);
+    let (mut b, root) = upload(
+        gpu,
+        options,
+        &triangles,
+        &prim_boxes,
+        bounds,
+        presort,
+        report,
+    )?;
+    let end = b.build_levels(root)?;
+    let (nodes, refs, mut report) = b.download(&end)?;
+    report.total_ms = ms(start);
+    Ok(GpuBuild {
+        tree: KdTree::from_parts(triangles, bounds, nodes, refs),
+        report,
+    })
+}
 
+/// The first phase: the root's nine lists presorted (on the host or the device, as `presort`
+/// says) and uploaded with the primitive boxes and, with clipping, the triangles. Returns the
+/// builder and the root level's parameters.
+fn upload<'a>(
+    gpu: &'a Gpu,
+    options: &'a BuildOptions,
+    triangles: &[Triangle],
+    prim_boxes: &[Aabb],
+    bounds: Aabb,
+    presort: Presort,
+    mut report: GpuReport,
+) -> Result<(Builder<'a>, Params), GpuError> {
+    let n = triangles.len();
     let kernels = Kernels::new(gpu);
     report.presort_on_device = match presort {
         Presort::Auto => gpu.adapter.device_type != wgpu::DeviceType::Cpu,
@@ -270,10 +299,10 @@ pub fn build_with(
     let mut root = Lists::new();
     let t = Instant::now();
     let (host_entries, starts, root_entries) = if report.presort_on_device {
-        let (len, starts) = presort::on_device(gpu, &kernels, &prim_boxes, &mut root.entries)?;
+        let (len, starts) = presort::on_device(gpu, &kernels, prim_boxes, &mut root.entries)?;
         (None, starts, len)
     } else {
-        let (entries, starts) = presort::root_lists(&prim_boxes);
+        let (entries, starts) = presort::root_lists(prim_boxes);
         let len = entries.len();
         (Some(entries), starts, len)
     };
@@ -303,7 +332,7 @@ pub fn build_with(
     root.ref_prim
         .write(gpu, &(0..n as u32).collect::<Vec<u32>>())?;
     root.ref_node.write(gpu, &vec![0u32; n])?;
-    root.ref_boxes.write(gpu, &bits(&prim_boxes))?;
+    root.ref_boxes.write(gpu, &bits(prim_boxes))?;
     gpu.finish()?;
     report.upload_ms = ms(t);
 
@@ -317,8 +346,8 @@ pub fn build_with(
         report,
     };
     b.bufs.totals.ensure(gpu, 8, false)?;
-
-    let mut p = Params {
+    let cost = options.cost;
+    let root = Params {
         nodes: 1,
         entries: root_entries as u32,
         refs: n as u32,
@@ -329,65 +358,84 @@ pub fn build_with(
         clip: options.clip as u32,
         ..Params::default()
     };
-    let mut cur = 0;
-    loop {
-        b.report.levels += 1;
-        let level = b.lists[cur].handles();
-        // The level's parameters; the layout phase copies the candidate layout in.
-        let params = gpu.uniform(&p);
-        let layout = b.timed(Phase::Layout, |b| b.layout(&level, &p, &params))?;
-        b.bufs.best.ensure(gpu, 3 * p.nodes as usize, false)?;
-        if layout.n > 0 {
-            b.candidate_buffers(layout)?;
-            b.timed(Phase::Candidates, |b| b.candidates(&level, &p, &params))?;
-            b.timed(Phase::Counting, |b| b.count(&level, &p, &params, layout))?;
-            b.timed(Phase::Pricing, |b| b.price(&level, &p, layout))?;
+    Ok((b, root))
+}
+
+impl Builder<'_> {
+    /// The second phase: level after level on the device, from the root's parameters `p`,
+    /// each level's phases in the CPU level builder's order, until a level splits no node.
+    /// Returns the last level's parameters, whose bases are the tree's node and reference
+    /// counts.
+    fn build_levels(&mut self, mut p: Params) -> Result<Params, GpuError> {
+        let gpu = self.gpu;
+        // The root level's references are the triangles.
+        let budget = self.options.cost.reference_budget(p.refs as usize);
+        let mut cur = 0;
+        loop {
+            self.report.levels += 1;
+            let level = self.lists[cur].handles();
+            // The level's parameters; the layout phase copies the candidate layout in.
+            let params = gpu.uniform(&p);
+            let layout = self.timed(Phase::Layout, |b| b.layout(&level, &p, &params))?;
+            self.bufs.best.ensure(gpu, 3 * p.nodes as usize, false)?;
+            if layout.n > 0 {
+                self.candidate_buffers(layout)?;
+                self.timed(Phase::Candidates, |b| b.candidates(&level, &p, &params))?;
+                self.timed(Phase::Counting, |b| b.count(&level, &p, &params, layout))?;
+                self.timed(Phase::Pricing, |b| b.price(&level, &p, layout))?;
+            }
+            self.timed(Phase::BestSplit, |b| b.best_split(&p, &params, layout))?;
+            self.timed(Phase::Decision, |b| b.decide(&level, &p, &params))?;
+            let totals = self.timed(Phase::Sides, |b| b.sides(&level, &mut p, &params, budget))?;
+            let (node_end, ref_end) =
+                self.timed(Phase::Output, |b| b.output(&level, &p, &totals))?;
+            if totals.splits == 0 {
+                p.node_base = node_end as u32;
+                p.ref_base = ref_end as u32;
+                return Ok(p);
+            }
+            let next = 1 - cur;
+            self.timed(Phase::Partition, |b| {
+                b.partition(&level, next, &mut p, &totals)
+            })?;
+            p = Params {
+                nodes: 2 * totals.splits as u32,
+                entries: totals.next_entries as u32,
+                refs: totals.next_table as u32,
+                depth: p.depth + 1,
+                node_base: node_end as u32,
+                ref_base: ref_end as u32,
+                force_leaves: 0,
+                next_nodes: 0,
+                regen: 0,
+                ..p
+            };
+            cur = next;
         }
-        b.timed(Phase::BestSplit, |b| b.best_split(&p, &params, layout))?;
-        b.timed(Phase::Decision, |b| b.decide(&level, &p, &params))?;
-        let totals = b.timed(Phase::Sides, |b| b.sides(&level, &mut p, &params, budget))?;
-        let (node_end, ref_end) = b.timed(Phase::Output, |b| b.output(&level, &p, &totals))?;
-        if totals.splits == 0 {
-            p.node_base = node_end as u32;
-            p.ref_base = ref_end as u32;
-            break;
-        }
-        let next = 1 - cur;
-        b.timed(Phase::Partition, |b| {
-            b.partition(&level, next, &mut p, &totals)
-        })?;
-        p = Params {
-            nodes: 2 * totals.splits as u32,
-            entries: totals.next_entries as u32,
-            refs: totals.next_table as u32,
-            depth: p.depth + 1,
-            node_base: node_end as u32,
-            ref_base: ref_end as u32,
-            force_leaves: 0,
-            next_nodes: 0,
-            regen: 0,
-            ..p
-        };
-        cur = next;
     }
 
-    let mut report = b.report;
-    report.device_bytes = 4 * (b.bufs.words() + b.lists.iter().map(Lists::words).sum::<usize>())
-        + b.corners.size() as usize;
-    let t = Instant::now();
-    let words = gpu.download::<u32>(b.bufs.nodes_out.get(), 3 * p.node_base as usize)?;
-    let refs = gpu.download::<u32>(b.bufs.refs_out.get(), p.ref_base as usize)?;
-    report.download_ms = ms(t);
-    let nodes = words
-        .chunks(3)
-        .map(|w| match w[0] {
-            3 => Node::leaf(w[1], w[2]),
-            axis => Node::interior(axis as usize, f32::from_bits(w[1]), w[2]),
-        })
-        .collect();
-    report.total_ms = ms(start);
-    Ok(GpuBuild {
-        tree: KdTree::from_parts(triangles, bounds, nodes, refs),
-        report,
-    })
+    /// The third phase: the finished tree's nodes and references brought down once (`end`
+    /// from [`Builder::build_levels`]), with the report.
+    fn download(self, end: &Params) -> Result<(Vec<Node>, Vec<u32>, GpuReport), GpuError> {
+        let mut report = self.report;
+        report.device_bytes = 4
+            * (self.bufs.words() + self.lists.iter().map(Lists::words).sum::<usize>())
+            + self.corners.size() as usize;
+        let t = Instant::now();
+        let words = self
+            .gpu
+            .download::<u32>(self.bufs.nodes_out.get(), 3 * end.node_base as usize)?;
+        let refs = self
+            .gpu
+            .download::<u32>(self.bufs.refs_out.get(), end.ref_base as usize)?;
+        report.download_ms = ms(t);
+        let nodes = words
+            .chunks(3)
+            .map(|w| match w[0] {
+                3 => Node::leaf(w[1], w[2]),
+                axis => Node::interior(axis as usize, f32::from_bits(w[1]), w[2]),
+            })
+            .collect();
+        Ok((nodes, refs, report))
+    }
 }

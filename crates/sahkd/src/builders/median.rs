@@ -65,14 +65,28 @@ enum Outcome {
     },
 }
 
+/// What stays fixed over a build.
+struct Limits<'a> {
+    cost: &'a CostModel,
+    max_depth: u32,
+    /// The reference budget of the whole tree.
+    budget: usize,
+    /// Nodes with more primitives than this are large.
+    large: usize,
+    /// The triangles, to re-clip straddlers (`None` without clipping).
+    clip: Option<&'a [Triangle]>,
+}
+
 pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
     let cost = &options.cost;
     let total_prims = prims.triangles.len();
-    let max_depth = cost.max_depth_for(total_prims);
-    let budget = cost.reference_budget(total_prims);
-    let clip = options.clip.then_some(prims.triangles);
-    let large = options.median_large_node as usize;
-
+    let limits = Limits {
+        cost,
+        max_depth: cost.max_depth_for(total_prims),
+        budget: cost.reference_budget(total_prims),
+        large: options.median_large_node as usize,
+        clip: options.clip.then_some(prims.triangles),
+    };
     let root = Pending {
         slot: 0,
         bounds: prims.bounds,
@@ -92,17 +106,43 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
         nodes: vec![Node::leaf(0, 0)],
         ..BuiltTree::default()
     };
-    // References held by the finished leaves and the pending nodes, large and small.
-    let mut references = total_prims;
-    let mut small = Vec::new();
+    let large = build_large_nodes(root, &limits, &mut built);
+    build_small_nodes(
+        prims.triangles,
+        large.small,
+        options,
+        limits.max_depth,
+        limits.budget.saturating_sub(large.references),
+        &mut built,
+    );
+    built.report.peak_working_bytes = large.peak_items * std::mem::size_of::<Item>();
+    built
+}
+
+/// What the large-node phase leaves to the small-node phase.
+struct LargePhase {
+    /// The small nodes, in the order they were made.
+    small: Vec<Pending>,
+    /// References held by the finished leaves and the small nodes.
+    references: usize,
+    /// The most items held at once.
+    peak_items: usize,
+}
+
+/// The large-node phase: level by level, every large node is cut (empty space or spatial
+/// median) or made a leaf, until no node is large; the small nodes are collected.
+fn build_large_nodes(root: Pending, limits: &Limits, built: &mut BuiltTree) -> LargePhase {
+    let mut phase = LargePhase {
+        references: root.items.len(),
+        peak_items: root.items.len(),
+        small: Vec::new(),
+    };
     let mut level = Vec::new();
-    if root.items.len() > large {
+    if root.items.len() > limits.large {
         level.push(root);
     } else {
-        small.push(root);
+        phase.small.push(root);
     }
-    let mut peak_items = total_prims;
-
     while !level.is_empty() {
         let mut report = LevelReport {
             depth: level[0].depth,
@@ -112,23 +152,7 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
             ..LevelReport::default()
         };
         let start = Instant::now();
-        let mut splits: Vec<Option<Split>> = level
-            .par_iter()
-            .map(|node| choose_split(node, cost, max_depth))
-            .collect();
-        // The budget in level order: a split is taken while the running total of references
-        // stays within it.
-        let mut held = references;
-        for (node, split) in level.iter().zip(splits.iter_mut()) {
-            if let Some(s) = split {
-                let after = held + (s.n_left + s.n_right) as usize - node.items.len();
-                if after <= budget {
-                    held = after;
-                } else {
-                    *split = None;
-                }
-            }
-        }
+        let splits = decide_level(&level, phase.references, limits);
         report.ms.decision = start.elapsed().as_secs_f64() * 1e3;
 
         let start = Instant::now();
@@ -138,7 +162,7 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
             .map(|(node, split)| match split {
                 None => Outcome::Leaf(node),
                 Some(split) => {
-                    let children = partition(&node, &split, clip);
+                    let children = partition(&node, &split, limits.clip);
                     Outcome::Split {
                         node,
                         split,
@@ -149,63 +173,90 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
             .collect();
         report.ms.partition = start.elapsed().as_secs_f64() * 1e3;
 
-        let mut next = Vec::new();
-        for outcome in outcomes {
-            match outcome {
-                Outcome::Leaf(node) => {
-                    report.leaves += 1;
-                    let first = built.refs.len() as u32;
-                    built.refs.extend(node.items.iter().map(|it| it.id));
-                    built.nodes[node.slot as usize] = Node::leaf(first, node.items.len() as u32);
-                }
-                Outcome::Split {
-                    node,
-                    split,
-                    children,
-                } => {
-                    let slot = built.nodes.len() as u32;
-                    built.nodes[node.slot as usize] = Node::interior(split.axis, split.pos, slot);
-                    built.nodes.extend([Node::leaf(0, 0); 2]);
-                    let [left, right] = children;
-                    references =
-                        references + left.items.len() + right.items.len() - node.items.len();
-                    let (left_box, right_box) = node.bounds.split(split.axis, split.pos);
-                    for (slot, bounds, side) in
-                        [(slot, left_box, left), (slot + 1, right_box, right)]
-                    {
-                        let child = Pending {
-                            slot,
-                            bounds,
-                            depth: node.depth + 1,
-                            items: side.items,
-                            extent: side.extent,
-                        };
-                        if child.items.len() > large {
-                            next.push(child);
-                        } else {
-                            small.push(child);
-                        }
+        let next = place_level(outcomes, limits, built, &mut phase, &mut report);
+        // The level's items and its children's were held at once.
+        let held_items: usize = next
+            .iter()
+            .chain(phase.small.iter())
+            .map(|n| n.items.len())
+            .sum();
+        phase.peak_items = phase.peak_items.max(report.references + held_items);
+        built.report.levels.push(report);
+        level = next;
+    }
+    phase
+}
+
+/// The splits of a level of large nodes, with the budget taken in level order: a split is
+/// kept while the running total of references (`references` before the level) stays
+/// within it.
+fn decide_level(level: &[Pending], references: usize, limits: &Limits) -> Vec<Option<Split>> {
+    let mut splits: Vec<Option<Split>> = level
+        .par_iter()
+        .map(|node| choose_split(node, limits.cost, limits.max_depth))
+        .collect();
+    let mut held = references;
+    for (node, split) in level.iter().zip(splits.iter_mut()) {
+        if let Some(s) = split {
+            let after = held + s.refs() as usize - node.items.len();
+            if after <= limits.budget {
+                held = after;
+            } else {
+                *split = None;
+            }
+        }
+    }
+    splits
+}
+
+/// Writes a level's leaves and split nodes into the tree, in node order, and returns the
+/// next level's large nodes; small children go to `phase.small`.
+fn place_level(
+    outcomes: Vec<Outcome>,
+    limits: &Limits,
+    built: &mut BuiltTree,
+    phase: &mut LargePhase,
+    report: &mut LevelReport,
+) -> Vec<Pending> {
+    let mut next = Vec::new();
+    for outcome in outcomes {
+        match outcome {
+            Outcome::Leaf(node) => {
+                report.leaves += 1;
+                let first = built.refs.len() as u32;
+                built.refs.extend(node.items.iter().map(|it| it.id));
+                built.nodes[node.slot as usize] = Node::leaf(first, node.items.len() as u32);
+            }
+            Outcome::Split {
+                node,
+                split,
+                children,
+            } => {
+                let slot = built.nodes.len() as u32;
+                built.nodes[node.slot as usize] = Node::interior(split.axis, split.pos, slot);
+                built.nodes.extend([Node::leaf(0, 0); 2]);
+                let [left, right] = children;
+                phase.references =
+                    phase.references + left.items.len() + right.items.len() - node.items.len();
+                let (left_box, right_box) = node.bounds.split(split.axis, split.pos);
+                for (slot, bounds, side) in [(slot, left_box, left), (slot + 1, right_box, right)] {
+                    let child = Pending {
+                        slot,
+                        bounds,
+                        depth: node.depth + 1,
+                        items: side.items,
+                        extent: side.extent,
+                    };
+                    if child.items.len() > limits.large {
+                        next.push(child);
+                    } else {
+                        phase.small.push(child);
                     }
                 }
             }
         }
-        // The level's items and its children's were held at once.
-        let held_items: usize = next.iter().chain(small.iter()).map(|n| n.items.len()).sum();
-        peak_items = peak_items.max(report.references + held_items);
-        built.report.levels.push(report);
-        level = next;
     }
-
-    build_small_nodes(
-        prims.triangles,
-        small,
-        options,
-        max_depth,
-        budget.saturating_sub(references),
-        &mut built,
-    );
-    built.report.peak_working_bytes = peak_items * std::mem::size_of::<Item>();
-    built
+    next
 }
 
 /// The split of a large node, or `None` when it must be a leaf.
