@@ -522,3 +522,31 @@ mod tests {
         }
     }
 }
+
+/// The build options as the JSON reports of `build` and `info` show them (flattened into
+/// each): names from the library, the bins the build used.
+#[derive(serde::Serialize, Debug)]
+pub struct OptionsReport {
+    /// The preset the options started from (options given beside it override it; none in
+    /// files from before presets).
+    pub preset: Option<&'static str>,
+    pub algorithm: &'static str,
+    pub axes: &'static str,
+    pub counting: &'static str,
+    pub clip: bool,
+    /// Bins of the binned SAH for big nodes; 0: exact SAH everywhere.
+    pub bins: u32,
+}
+
+impl OptionsReport {
+    pub fn of(o: &BuildOptions) -> OptionsReport {
+        OptionsReport {
+            preset: o.preset.map(|p| p.name()),
+            algorithm: o.algorithm.name(),
+            axes: o.axes.name(),
+            counting: o.counting.name(),
+            clip: o.clip,
+            bins: o.resolved_bins(),
+        }
+    }
+}

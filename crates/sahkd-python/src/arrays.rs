@@ -357,43 +357,33 @@ fn ray_bound<'py>(obj: &Bound<'py, PyAny>, part: RayPart, rays: usize) -> PyResu
 }
 
 /// [`rays`] in double precision, for the f64 queries: float64 input is kept as given.
-pub fn rays64(
-    origins: &Bound<'_, PyAny>,
-    directions: &Bound<'_, PyAny>,
-    t_min: &Bound<'_, PyAny>,
-    t_max: &Bound<'_, PyAny>,
-) -> PyResult<Vec<Ray64>> {
-    let (o, n) = points(origins, "origins", "(R, 3)")?;
-    let (d, m) = points(directions, "directions", "(R, 3)")?;
-    if n != m {
-        return Err(PyValueError::new_err(format!(
-            "origins and directions must have the same number of rays, got {n} and {m}"
-        )));
-    }
-    let lo = ray_bound(t_min, RayPart::TMin, n)?;
-    let hi = ray_bound(t_max, RayPart::TMax, n)?;
-    let (lo, hi) = (lo.view(), hi.view());
+pub fn rays64(input: &RayInput<'_>) -> PyResult<Vec<Ray64>> {
+    let (lo, hi) = (input.t_min.view(), input.t_max.view());
+    let (o, d, n) = (&input.origins, &input.directions, input.len);
     let mut rays = Vec::with_capacity(n);
-    visit_points_f64(&o, "origins", "float64", |i, p| {
+    visit_points_f64(o, "origins", "float64", |i, p| {
         rays.push(Ray64::new(p, [0.0; 3]).with_range(lo.get(i), hi.get(i)));
         true
     })?;
-    visit_points_f64(&d, "directions", "float64", |i, p| {
+    visit_points_f64(d, "directions", "float64", |i, p| {
         rays[i].direction = p;
         true
     })?;
     Ok(rays)
 }
 
-/// The arrays of a ray batch with their shapes and bounds checked (rows are checked where
-/// they are read): `(R, 3)` origins and directions, scalar or `(R,)` bounds.
-pub struct RayInput<'py> {
-    pub origins: Points<'py>,
-    pub directions: Points<'py>,
-    pub t_min: Bound1<'py>,
-    pub t_max: Bound1<'py>,
+/// The rays of a call as columns: `len` origins and directions (`P`), and their bounds (`B`).
+pub struct RayColumns<P, B> {
+    pub origins: P,
+    pub directions: P,
+    pub t_min: B,
+    pub t_max: B,
     pub len: usize,
 }
+
+/// The arrays of a ray batch with their shapes and bounds checked (rows are checked where
+/// they are read): `(R, 3)` origins and directions, scalar or `(R,)` bounds.
+pub type RayInput<'py> = RayColumns<Points<'py>, Bound1<'py>>;
 
 pub fn ray_input<'py>(
     origins: &Bound<'py, PyAny>,

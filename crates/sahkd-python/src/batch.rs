@@ -16,7 +16,7 @@ use rayon::ThreadPool;
 use sahkd::{Hit, KdTree, Ray, Vec3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::arrays::{BoundView, Points};
+use crate::arrays::{BoundView, Points, RayColumns};
 use crate::columns::HitColumns;
 
 /// Rays converted and traced by one task.
@@ -92,14 +92,8 @@ impl<'a> PointView<'a> {
     }
 }
 
-/// The rays of a call: origins, directions and their checked bounds.
-pub struct RayArrays<'a> {
-    pub origins: PointView<'a>,
-    pub directions: PointView<'a>,
-    pub t_min: BoundView<'a>,
-    pub t_max: BoundView<'a>,
-    pub len: usize,
-}
+/// The rays of a call, viewed: origins, directions and their checked bounds.
+pub type RayArrays<'a> = RayColumns<PointView<'a>, BoundView<'a>>;
 
 impl RayArrays<'_> {
     /// Rays `start..start + out.len()` into `out`; false if one of them is not finite. The

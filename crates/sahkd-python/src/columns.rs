@@ -5,10 +5,7 @@
 use numpy::{Element, PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
-use rayon::ThreadPool;
-use sahkd::Vec3;
 
-use crate::arrays;
 use rayon::prelude::*;
 use sahkd::scene::SceneTree;
 use sahkd::Hit;
@@ -179,17 +176,4 @@ impl ClosestColumns {
         }
         PyTuple::new(py, items)
     }
-}
-
-/// `query` of every point on `pool` with the interpreter released, as a numpy array: the
-/// shape of every per-point query (distance, signed distance, inside, winding number).
-pub fn per_point<'py, T: Element + Send>(
-    py: Python<'py>,
-    points: &Bound<'py, PyAny>,
-    pool: &ThreadPool,
-    query: impl Fn(&[Vec3]) -> Vec<T> + Send + Sync,
-) -> PyResult<Bound<'py, PyArray1<T>>> {
-    let points = arrays::query_points(points)?;
-    let answers = py.detach(|| pool.install(|| query(&points)));
-    Ok(PyArray1::from_vec(py, answers))
 }

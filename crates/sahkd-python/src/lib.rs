@@ -10,13 +10,12 @@ mod batch;
 mod columns;
 mod options;
 mod pool;
-mod rays;
+mod queries;
 mod scene;
 
 use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 
-use columns::{per_point, ClosestColumns};
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -24,7 +23,7 @@ use pyo3::pybacked::PyBackedBytes;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBytes, PyDict, PyTuple, PyType};
 use rayon::ThreadPool;
-use sahkd::{Hit, InsideTest, KdTree, LoadError, TreeMeta as Meta, TreeStats};
+use sahkd::{Hit, InsideTest, KdTree, LoadError, TreeMeta as Meta, TreeStats, Vec3};
 
 /// Nodes as (N, 2) words and the references, as `_structure` returns them.
 type Structure<'py> = (Bound<'py, PyArray2<u32>>, Bound<'py, PyArray1<u32>>);
@@ -85,9 +84,7 @@ fn namedtuple<'py>(
     Ok(cell.import(py, "sahkd._types", name)?.clone())
 }
 
-static HITS: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static ALL_HITS: PyOnceLock<Py<PyType>> = PyOnceLock::new();
-static CLOSEST: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 
 /// `inside=`: the name of an inside test.
 fn inside_arg(inside: &str) -> PyResult<InsideTest> {
@@ -109,63 +106,136 @@ impl PyKdTree {
         pool_of(self.meta.options.threads)
     }
 
+    /// What the shared queries (`queries::methods!`) run on.
+    fn target(&self) -> PyResult<(&KdTree, Arc<ThreadPool>)> {
+        Ok((&self.tree, self.pool()?))
+    }
+
     fn tree_stats(&self) -> &TreeStats {
         self.stats
             .get_or_init(|| self.tree.stats(&self.meta.options.cost))
     }
+}
 
-    /// Every hit of every ray as flat arrays plus offsets, nearest first within a ray.
-    fn all_hits<'py>(
-        &self,
-        py: Python<'py>,
-        input: &arrays::RayInput<'py>,
-        max_hits: Option<usize>,
-        walk: Walk,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let pool = self.pool()?;
-        let (tree, rows) = (&self.tree, input.len);
-        let (flat, counts) = traced(py, input, |rays| {
-            let blocks = batch::per_block(rays, &pool, |block| {
-                let (mut flat, mut counts, mut buf) = (Vec::new(), Vec::new(), Vec::new());
-                for r in block {
-                    match walk {
-                        Walk::Tree => tree.all_hits_into(r, &mut buf),
-                        Walk::Brute => tree.brute_all_hits_into(r, &mut buf),
-                    }
-                    buf.truncate(max_hits.unwrap_or(usize::MAX));
-                    counts.push(buf.len() as u32);
-                    flat.extend_from_slice(&buf);
+/// Every hit of every ray as flat arrays plus offsets, nearest first within a ray.
+fn all_hits<'py>(
+    py: Python<'py>,
+    tree: &KdTree,
+    pool: &ThreadPool,
+    input: &arrays::RayInput<'py>,
+    max_hits: Option<usize>,
+    walk: Walk,
+) -> PyResult<Bound<'py, PyAny>> {
+    let rows = input.len;
+    let (flat, counts) = traced(py, input, |rays| {
+        let blocks = batch::per_block(rays, pool, |block| {
+            let (mut flat, mut counts, mut buf) = (Vec::new(), Vec::new(), Vec::new());
+            for r in block {
+                match walk {
+                    Walk::Tree => tree.all_hits_into(r, &mut buf),
+                    Walk::Brute => tree.brute_all_hits_into(r, &mut buf),
                 }
-                (flat, counts)
-            })?;
-            let total = blocks.iter().map(|(f, _)| f.len()).sum();
-            let mut flat: Vec<Hit> = Vec::with_capacity(total);
-            let mut counts = Vec::with_capacity(rows);
-            for (f, c) in blocks {
-                flat.extend(f);
-                counts.extend(c);
+                buf.truncate(max_hits.unwrap_or(usize::MAX));
+                counts.push(buf.len() as u32);
+                flat.extend_from_slice(&buf);
             }
-            Some((flat, counts))
+            (flat, counts)
         })?;
-        let mut offsets = Vec::with_capacity(counts.len() + 1);
-        offsets.push(0i64);
-        let mut at = 0i64;
-        for c in counts {
-            at += c as i64;
-            offsets.push(at);
+        let total = blocks.iter().map(|(f, _)| f.len()).sum();
+        let mut flat: Vec<Hit> = Vec::with_capacity(total);
+        let mut counts = Vec::with_capacity(rows);
+        for (f, c) in blocks {
+            flat.extend(f);
+            counts.extend(c);
         }
-        let t: Vec<f32> = flat.iter().map(|h| h.t).collect();
-        let prim: Vec<i64> = flat.iter().map(|h| h.prim as i64).collect();
-        let u: Vec<f32> = flat.iter().map(|h| h.u).collect();
-        let v: Vec<f32> = flat.iter().map(|h| h.v).collect();
-        namedtuple(py, &ALL_HITS, "AllHits")?.call1((
-            PyArray1::from_vec(py, t),
-            PyArray1::from_vec(py, prim),
-            PyArray1::from_vec(py, u),
-            PyArray1::from_vec(py, v),
-            PyArray1::from_vec(py, offsets),
-        ))
+        Some((flat, counts))
+    })?;
+    let mut offsets = Vec::with_capacity(counts.len() + 1);
+    offsets.push(0i64);
+    let mut at = 0i64;
+    for c in counts {
+        at += c as i64;
+        offsets.push(at);
     }
+    let t: Vec<f32> = flat.iter().map(|h| h.t).collect();
+    let prim: Vec<i64> = flat.iter().map(|h| h.prim as i64).collect();
+    let u: Vec<f32> = flat.iter().map(|h| h.u).collect();
+    let v: Vec<f32> = flat.iter().map(|h| h.v).collect();
+    namedtuple(py, &ALL_HITS, "AllHits")?.call1((
+        PyArray1::from_vec(py, t),
+        PyArray1::from_vec(py, prim),
+        PyArray1::from_vec(py, u),
+        PyArray1::from_vec(py, v),
+        PyArray1::from_vec(py, offsets),
+    ))
+}
+
+/// `count_hits`: how many faces each ray hits.
+fn count_hits<'py>(
+    py: Python<'py>,
+    tree: &KdTree,
+    pool: &ThreadPool,
+    args: queries::RayArgs<'_, 'py>,
+) -> PyResult<Bound<'py, PyArray1<i64>>> {
+    let input = args.input()?;
+    let counts = traced(py, &input, |rays| batch::count_hits(tree, rays, pool))?;
+    Ok(PyArray1::from_vec(py, counts))
+}
+
+/// `intersect_all`: every hit of every ray, the nearest `max_hits` of each.
+fn intersect_all<'py>(
+    py: Python<'py>,
+    tree: &KdTree,
+    pool: &ThreadPool,
+    args: queries::RayArgs<'_, 'py>,
+    max_hits: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let max_hits = match options::int_arg(max_hits, "max_hits")? {
+        None => None,
+        Some(m) if m >= 0 => Some(m as usize),
+        Some(m) => {
+            return Err(PyValueError::new_err(format!(
+                "max_hits must be at least 0 (or None for all), got {m}"
+            )))
+        }
+    };
+    all_hits(py, tree, pool, &args.input()?, max_hits, Walk::Tree)
+}
+
+/// `_brute_force_all`: intersect_all's answer by testing every face of every ray.
+fn brute_force_all<'py>(
+    py: Python<'py>,
+    tree: &KdTree,
+    pool: &ThreadPool,
+    args: queries::RayArgs<'_, 'py>,
+) -> PyResult<Bound<'py, PyAny>> {
+    all_hits(py, tree, pool, &args.input()?, None, Walk::Brute)
+}
+
+/// `winding_number`: the generalized winding number around each point.
+fn winding_number<'py>(
+    py: Python<'py>,
+    tree: &KdTree,
+    pool: &ThreadPool,
+    points: &[Vec3],
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    queries::per_point(py, pool, || tree.winding_number_batch(points))
+}
+
+/// `KdTree(vertices, faces, **options)`: the tree built on the pool the options chose.
+fn build_tree(
+    py: Python<'_>,
+    vertices: &Bound<'_, PyAny>,
+    faces: &Bound<'_, PyAny>,
+    building: options::Building,
+) -> PyResult<PyKdTree> {
+    let triangles = arrays::triangles(vertices, faces)?;
+    let options::Building { options, pool, run } = building;
+    let built = py
+        .detach(|| pool.install(|| sahkd::build_triangles(triangles, &run)))
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let meta = Meta::new(options, &built.report, pool.current_num_threads());
+    Ok(PyKdTree::from_tree(built.tree, meta))
 }
 
 /// The checked arrays of a ray batch, with the default bounds [0, inf).
@@ -222,69 +292,8 @@ fn is_f64(precision: &str) -> PyResult<bool> {
     }
 }
 
-fn ray_args64(
-    origins: &Bound<'_, PyAny>,
-    directions: &Bound<'_, PyAny>,
-    t_min: Option<&Bound<'_, PyAny>>,
-    t_max: Option<&Bound<'_, PyAny>>,
-) -> PyResult<Vec<sahkd::Ray64>> {
-    let py = origins.py();
-    let zero = 0.0f64.into_pyobject(py)?.into_any();
-    let inf = f64::INFINITY.into_pyobject(py)?.into_any();
-    arrays::rays64(
-        origins,
-        directions,
-        t_min.unwrap_or(&zero),
-        t_max.unwrap_or(&inf),
-    )
-}
-
-#[pymethods]
+queries::methods! {
 impl PyKdTree {
-    #[new]
-    #[pyo3(
-        signature = (vertices, faces, preset=None, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost),
-        text_signature = "(vertices, faces, preset=None, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost)"
-    )]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        py: Python<'_>,
-        vertices: &Bound<'_, PyAny>,
-        faces: &Bound<'_, PyAny>,
-        preset: Option<&Bound<'_, PyAny>>,
-        algorithm: Option<&Bound<'_, PyAny>>,
-        axes: Option<&Bound<'_, PyAny>>,
-        counting: Option<&Bound<'_, PyAny>>,
-        clip: Option<&Bound<'_, PyAny>>,
-        threads: Option<&Bound<'_, PyAny>>,
-        bins: Option<&Bound<'_, PyAny>>,
-        cost: Option<&Bound<'_, PyDict>>,
-    ) -> PyResult<Self> {
-        let threads = threads_arg(options::int_arg(threads, "threads")?)?;
-        let args = options::BuildArgs {
-            preset,
-            algorithm,
-            axes,
-            counting,
-            clip,
-            threads,
-            bins,
-        };
-        let options = options::build_options(args, cost)?;
-        let triangles = arrays::triangles(vertices, faces)?;
-        let pool = pool_of(threads)?;
-        // The pool is chosen here, so the core must not start one of its own.
-        let run = sahkd::BuildOptions {
-            threads: None,
-            ..options
-        };
-        let built = py
-            .detach(|| pool.install(|| sahkd::build_triangles(triangles, &run)))
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        let meta = Meta::new(options, &built.report, pool.current_num_threads());
-        Ok(Self::from_tree(built.tree, meta))
-    }
-
     /// Number of triangles.
     fn __len__(&self) -> usize {
         self.tree.triangles().len()
@@ -373,184 +382,6 @@ impl PyKdTree {
             .map_err(PyValueError::new_err)
     }
 
-    /// The closest hit of each ray origin + t * direction with t_min <= t <= t_max, as
-    /// Hits(t, prim, u, v).
-    /// origins, directions: (R, 3) float32 or float64; t_min, t_max: scalars or (R,) arrays.
-    /// Returns float32 t (inf on a miss), int64 prim (the face index, -1 on a miss), and
-    /// float32 barycentrics u, v of corners 1 and 2 (0 on a miss). Ties in t go to the lower
-    /// face index. A ray with a zero direction or t_min > t_max hits nothing.
-    /// precision="f64" walks the same tree with the rays (float64 input kept as given), the
-    /// plane distances and the triangle tests in float64, for scenes beyond float32 (tiny
-    /// triangles far from the origin), and returns float64 t, u, v; about 3x slower.
-    #[pyo3(signature = (origins, directions, t_min=None, t_max=None, precision="f32"), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf, precision='f32')")]
-    fn intersect<'py>(
-        &self,
-        py: Python<'py>,
-        origins: &Bound<'py, PyAny>,
-        directions: &Bound<'py, PyAny>,
-        t_min: Option<&Bound<'py, PyAny>>,
-        t_max: Option<&Bound<'py, PyAny>>,
-        precision: &str,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let rays = rays::Rays::read(origins, directions, t_min, t_max, precision)?;
-        let columns = rays::closest(py, &self.tree, &rays, &*self.pool()?)?;
-        namedtuple(py, &HITS, "Hits")?.call1(columns)
-    }
-
-    /// Whether each ray hits anything with t_min <= t <= t_max, as a bool array (each ray
-    /// stops at the first hit found). precision as in intersect.
-    #[pyo3(signature = (origins, directions, t_min=None, t_max=None, precision="f32"), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf, precision='f32')")]
-    fn occluded<'py>(
-        &self,
-        py: Python<'py>,
-        origins: &Bound<'py, PyAny>,
-        directions: &Bound<'py, PyAny>,
-        t_min: Option<&Bound<'py, PyAny>>,
-        t_max: Option<&Bound<'py, PyAny>>,
-        precision: &str,
-    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let rays = rays::Rays::read(origins, directions, t_min, t_max, precision)?;
-        rays::occluded(py, &self.tree, &rays, &*self.pool()?)
-    }
-
-    /// How many faces each ray hits with t_min <= t <= t_max (int64), each face once. A ray
-    /// through an edge or vertex shared by several faces may count more than one of them.
-    #[pyo3(signature = (origins, directions, t_min=None, t_max=None), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf)")]
-    fn count_hits<'py>(
-        &self,
-        py: Python<'py>,
-        origins: &Bound<'py, PyAny>,
-        directions: &Bound<'py, PyAny>,
-        t_min: Option<&Bound<'py, PyAny>>,
-        t_max: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<Bound<'py, PyArray1<i64>>> {
-        let input = ray_input(origins, directions, t_min, t_max)?;
-        let pool = self.pool()?;
-        let counts = traced(py, &input, |rays| {
-            batch::count_hits(&self.tree, rays, &pool)
-        })?;
-        Ok(PyArray1::from_vec(py, counts))
-    }
-
-    /// Every face each ray hits with t_min <= t <= t_max, each face once, as
-    /// AllHits(t, prim, u, v, offsets). The hits of ray i
-    /// are t[offsets[i]:offsets[i+1]] (and the same slice of prim, u, v), nearest first, ties
-    /// by face index; offsets has R + 1 entries. max_hits keeps only the nearest that many of
-    /// each ray. AllHits.ray gives the ray index of each hit.
-    #[pyo3(signature = (origins, directions, t_min=None, t_max=None, max_hits=None), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf, max_hits=None)")]
-    fn intersect_all<'py>(
-        &self,
-        py: Python<'py>,
-        origins: &Bound<'py, PyAny>,
-        directions: &Bound<'py, PyAny>,
-        t_min: Option<&Bound<'py, PyAny>>,
-        t_max: Option<&Bound<'py, PyAny>>,
-        max_hits: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let max_hits = match options::int_arg(max_hits, "max_hits")? {
-            None => None,
-            Some(m) if m >= 0 => Some(m as usize),
-            Some(m) => {
-                return Err(PyValueError::new_err(format!(
-                    "max_hits must be at least 0 (or None for all), got {m}"
-                )))
-            }
-        };
-        let input = ray_input(origins, directions, t_min, t_max)?;
-        self.all_hits(py, &input, max_hits, Walk::Tree)
-    }
-
-    /// The closest point of the mesh to each point, as Closest(point, distance, prim):
-    /// point (N, 3) float64 on the mesh, distance (N,) float64, prim (N,) int64 (the face;
-    /// the lowest index among equally near ones). points: (N, 3) float32 or float64, rounded
-    /// to float32 like the mesh; the answer is then exact up to float64 rounding. On a mesh
-    /// without faces: NaN points, infinite distances, prim -1.
-    #[pyo3(text_signature = "(self, points)")]
-    fn closest_point<'py>(
-        &self,
-        py: Python<'py>,
-        points: &Bound<'py, PyAny>,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let points = arrays::query_points(points)?;
-        let pool = self.pool()?;
-        let columns = py.detach(|| {
-            let found = pool.install(|| self.tree.closest_point_batch(&points));
-            ClosestColumns::new(&found, |c| (c.point, c.distance, c.prim))
-        });
-        namedtuple(py, &CLOSEST, "Closest")?.call1(columns.into_tuple(py)?)
-    }
-
-    /// Distance from each point to the mesh, (N,) float64 (inf on a mesh without faces).
-    #[pyo3(text_signature = "(self, points)")]
-    fn distance<'py>(
-        &self,
-        py: Python<'py>,
-        points: &Bound<'py, PyAny>,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let pool = self.pool()?;
-        per_point(py, points, &pool, |p| self.tree.distance_batch(p))
-    }
-
-    /// Distance from each point to the mesh, negative inside, (N,) float64; 0 on the surface.
-    /// inside: "parity" (default: one ray's crossing parity, three voting where it passes near
-    /// an edge; fast, for closed meshes) or "winding" (generalized winding number over every face; robust for meshes
-    /// with holes, but O(faces) per point).
-    #[pyo3(signature = (points, inside="parity"), text_signature = "(self, points, inside='parity')")]
-    fn signed_distance<'py>(
-        &self,
-        py: Python<'py>,
-        points: &Bound<'py, PyAny>,
-        inside: &str,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let test = inside_arg(inside)?;
-        let pool = self.pool()?;
-        per_point(py, points, &pool, |p| {
-            self.tree.signed_distance_batch(p, test)
-        })
-    }
-
-    /// Whether each point is inside the mesh, (N,) bool; inside as for signed_distance.
-    /// Points on the surface may go either way.
-    #[pyo3(signature = (points, inside="parity"), text_signature = "(self, points, inside='parity')")]
-    fn contains<'py>(
-        &self,
-        py: Python<'py>,
-        points: &Bound<'py, PyAny>,
-        inside: &str,
-    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let test = inside_arg(inside)?;
-        let pool = self.pool()?;
-        per_point(py, points, &pool, |p| self.tree.contains_batch(p, test))
-    }
-
-    /// The generalized winding number of the mesh around each point, (N,) float64: 1 inside
-    /// and 0 outside a closed mesh wound outwards (-1 inside one wound inwards), fractional
-    /// near holes. Exact sum over every face, O(faces) per point.
-    #[pyo3(text_signature = "(self, points)")]
-    fn winding_number<'py>(
-        &self,
-        py: Python<'py>,
-        points: &Bound<'py, PyAny>,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let pool = self.pool()?;
-        per_point(py, points, &pool, |p| self.tree.winding_number_batch(p))
-    }
-
-    /// The brute-force oracle for tests: intersect_all's answer computed by testing every
-    /// face of every ray, without the tree.
-    #[pyo3(signature = (origins, directions, t_min=None, t_max=None))]
-    fn _brute_force_all<'py>(
-        &self,
-        py: Python<'py>,
-        origins: &Bound<'py, PyAny>,
-        directions: &Bound<'py, PyAny>,
-        t_min: Option<&Bound<'py, PyAny>>,
-        t_max: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let input = ray_input(origins, directions, t_min, t_max)?;
-        self.all_hits(py, &input, None, Walk::Brute)
-    }
-
     /// The tree, its build options and timings as bytes (the .sahkd file format).
     fn to_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
         let bytes = py.detach(|| self.tree.to_bytes(&self.meta));
@@ -570,6 +401,62 @@ impl PyKdTree {
         let bytes = self.to_bytes(py);
         PyTuple::new(py, [load, PyTuple::new(py, [bytes])?.into_any()])
     }
+}
+build {
+    #[new]
+    new(py: Python<'_>, vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>) -> Self
+        = build_tree(py, vertices, faces), [vertices, faces],
+        "(vertices, faces, preset=None, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost)";
+}
+rays {
+    /// The closest hit of each ray origin + t * direction with t_min <= t <= t_max, as
+    /// Hits(t, prim, u, v).
+    /// origins, directions: (R, 3) float32 or float64; t_min, t_max: scalars or (R,) arrays.
+    /// Returns float32 t (inf on a miss), int64 prim (the face index, -1 on a miss), and
+    /// float32 barycentrics u, v of corners 1 and 2 (0 on a miss). Ties in t go to the lower
+    /// face index. A ray with a zero direction or t_min > t_max hits nothing.
+    /// precision="f64" walks the same tree with the rays (float64 input kept as given), the
+    /// plane distances and the triangle tests in float64, for scenes beyond float32 (tiny
+    /// triangles far from the origin), and returns float64 t, u, v; about 3x slower.
+    intersect(precision: &str = "f32") -> PyAny = queries::intersect, "(self, origins, directions, t_min=0.0, t_max=math.inf, precision='f32')";
+    /// Whether each ray hits anything with t_min <= t <= t_max, as a bool array (each ray
+    /// stops at the first hit found). precision as in intersect.
+    occluded(precision: &str = "f32") -> PyArray1<bool> = queries::occluded, "(self, origins, directions, t_min=0.0, t_max=math.inf, precision='f32')";
+    /// How many faces each ray hits with t_min <= t <= t_max (int64), each face once. A ray
+    /// through an edge or vertex shared by several faces may count more than one of them.
+    count_hits() -> PyArray1<i64> = count_hits, "(self, origins, directions, t_min=0.0, t_max=math.inf)";
+    /// Every face each ray hits with t_min <= t <= t_max, each face once, as
+    /// AllHits(t, prim, u, v, offsets). The hits of ray i
+    /// are t[offsets[i]:offsets[i+1]] (and the same slice of prim, u, v), nearest first, ties
+    /// by face index; offsets has R + 1 entries. max_hits keeps only the nearest that many of
+    /// each ray. AllHits.ray gives the ray index of each hit.
+    intersect_all(max_hits: Option<&Bound<'_, PyAny>> = None) -> PyAny = intersect_all, "(self, origins, directions, t_min=0.0, t_max=math.inf, max_hits=None)";
+    /// The brute-force oracle for tests: intersect_all's answer computed by testing every
+    /// face of every ray, without the tree.
+    _brute_force_all() -> PyAny = brute_force_all, "(self, origins, directions, t_min=0.0, t_max=math.inf)";
+}
+points {
+    /// The closest point of the mesh to each point, as Closest(point, distance, prim):
+    /// point (N, 3) float64 on the mesh, distance (N,) float64, prim (N,) int64 (the face;
+    /// the lowest index among equally near ones). points: (N, 3) float32 or float64, rounded
+    /// to float32 like the mesh; the answer is then exact up to float64 rounding. On a mesh
+    /// without faces: NaN points, infinite distances, prim -1.
+    closest_point() -> PyAny = queries::closest_point, "(self, points)";
+    /// Distance from each point to the mesh, (N,) float64 (inf on a mesh without faces).
+    distance() -> PyArray1<f64> = queries::distance, "(self, points)";
+    /// Distance from each point to the mesh, negative inside, (N,) float64; 0 on the surface.
+    /// inside: "parity" (default: one ray's crossing parity, three voting where it passes near
+    /// an edge; fast, for closed meshes) or "winding" (generalized winding number over every face; robust for meshes
+    /// with holes, but O(faces) per point).
+    signed_distance(inside: &str = "parity") -> PyArray1<f64> = queries::signed_distance, "(self, points, inside='parity')";
+    /// Whether each point is inside the mesh, (N,) bool; inside as for signed_distance.
+    /// Points on the surface may go either way.
+    contains(inside: &str = "parity") -> PyArray1<bool> = queries::contains, "(self, points, inside='parity')";
+    /// The generalized winding number of the mesh around each point, (N,) float64: 1 inside
+    /// and 0 outside a closed mesh wound outwards (-1 inside one wound inwards), fractional
+    /// near holes. Exact sum over every face, O(faces) per point.
+    winding_number() -> PyArray1<f64> = winding_number, "(self, points)";
+}
 }
 
 /// Reads a tree written by KdTree.to_bytes (or pickled); raises ValueError if the data is

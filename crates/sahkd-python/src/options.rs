@@ -1,8 +1,11 @@
 //! Build options from Python keyword arguments.
 
+use std::sync::Arc;
+
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use rayon::ThreadPool;
 use sahkd::{Algorithm, Axes, BuildOptions, CostModel, Counting, Preset};
 
 /// The cost-model keywords `KdTree(...)` accepts beside its named parameters.
@@ -90,18 +93,43 @@ pub struct BuildArgs<'a, 'py> {
     pub axes: Option<&'a Bound<'py, PyAny>>,
     pub counting: Option<&'a Bound<'py, PyAny>>,
     pub clip: Option<&'a Bound<'py, PyAny>>,
-    /// Already checked by the thread rule.
-    pub threads: Option<usize>,
+    pub threads: Option<&'a Bound<'py, PyAny>>,
     pub bins: Option<&'a Bound<'py, PyAny>>,
+    /// The remaining keywords: the cost model.
+    pub cost: Option<&'a Bound<'py, PyDict>>,
 }
 
-/// Options from the constructor's arguments: the preset's (`balanced` when none is named),
+/// A build as the arguments chose it.
+pub struct Building {
+    /// The options as chosen, `threads` among them, for the tree's report.
+    pub options: BuildOptions,
+    /// The pool the build runs on, and the tree's queries after it.
+    pub pool: Arc<ThreadPool>,
+    /// The options the build runs with: the pool is chosen here, so the core must not start
+    /// one of its own.
+    pub run: BuildOptions,
+}
+
+impl BuildArgs<'_, '_> {
+    /// The options ([`build_options`]) and the pool of `threads=`.
+    pub fn parse(self) -> PyResult<Building> {
+        let threads = crate::threads_arg(int_arg(self.threads, "threads")?)?;
+        let options = build_options(&self, threads)?;
+        Ok(Building {
+            options,
+            pool: crate::pool_of(threads)?,
+            run: BuildOptions {
+                threads: None,
+                ..options
+            },
+        })
+    }
+}
+
+/// Options from the build arguments: the preset's (`balanced` when none is named),
 /// with every argument given beside it in its place, and `cost` the remaining keywords.
 /// Ranges are the library's rules (`BuildOptions::validate`), in its words.
-pub fn build_options(
-    args: BuildArgs<'_, '_>,
-    cost: Option<&Bound<'_, PyDict>>,
-) -> PyResult<BuildOptions> {
+fn build_options(args: &BuildArgs<'_, '_>, threads: Option<usize>) -> PyResult<BuildOptions> {
     let preset: Preset = match str_arg(args.preset, "preset")? {
         Some(p) => choice("preset", &p, Preset::NAMES)?,
         None => Preset::default(),
@@ -119,8 +147,8 @@ pub fn build_options(
     if let Some(clip) = bool_arg(args.clip, "clip")? {
         o.clip = clip;
     }
-    o.threads = args.threads;
-    if let Some(kw) = cost {
+    o.threads = threads;
+    if let Some(kw) = args.cost {
         o.cost = cost_model(kw, o.cost)?;
     }
     if let Some(b) = int_arg(args.bins, "bins")? {

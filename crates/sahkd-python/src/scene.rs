@@ -11,16 +11,10 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::sync::PyOnceLock;
-use pyo3::types::{PyDict, PyType};
+use rayon::ThreadPool;
 use sahkd::scene::{Scene, SceneTree, Transform};
 
-use crate::columns::{per_point, ClosestColumns};
-use crate::rays::{self, Rays};
-use crate::{arrays, inside_arg, namedtuple, options, pool_of, threads_arg};
-
-static SCENE_HITS: PyOnceLock<Py<PyType>> = PyOnceLock::new();
-static SCENE_CLOSEST: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+use crate::{arrays, options, pool_of, queries};
 
 /// Several meshes, each placed as given and again by instances, in one kd-tree.
 ///
@@ -40,14 +34,10 @@ pub struct PyScene {
 #[derive(Default)]
 struct State {
     scene: Scene,
-    built: Option<Arc<Built>>,
+    /// The last build's tree and its `threads=`.
+    built: Option<(Arc<SceneTree>, Option<usize>)>,
     /// Changed since the last build.
     stale: bool,
-}
-
-struct Built {
-    tree: SceneTree,
-    threads: Option<usize>,
 }
 
 impl PyScene {
@@ -57,18 +47,41 @@ impl PyScene {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    fn built(&self) -> PyResult<Arc<Built>> {
-        let state = self.lock();
-        match &state.built {
-            None => Err(PyValueError::new_err(
-                "the scene is not built: call build() after adding meshes and instances",
-            )),
-            Some(_) if state.stale => Err(PyValueError::new_err(
-                "the scene changed since build(): call build() again",
-            )),
-            Some(b) => Ok(b.clone()),
-        }
+    /// The last build's tree and its pool, for the shared queries (`queries::methods!`).
+    fn target(&self) -> PyResult<(Arc<SceneTree>, Arc<ThreadPool>)> {
+        let (tree, threads) = {
+            let state = self.lock();
+            match &state.built {
+                None => Err(PyValueError::new_err(
+                    "the scene is not built: call build() after adding meshes and instances",
+                )),
+                Some(_) if state.stale => Err(PyValueError::new_err(
+                    "the scene changed since build(): call build() again",
+                )),
+                Some((tree, threads)) => Ok((tree.clone(), *threads)),
+            }?
+        };
+        Ok((tree, pool_of(threads)?))
     }
+}
+
+/// `build(**options)`: the tree over every placed triangle, on the pool the options
+/// chose.
+fn build_scene(scene: &PyScene, py: Python<'_>, building: options::Building) -> PyResult<()> {
+    let options::Building { options, pool, run } = building;
+    // A snapshot (the meshes are shared, not copied): the scene may change meanwhile,
+    // and then this build is already stale.
+    let (snapshot, len) = {
+        let state = scene.lock();
+        (state.scene.clone(), state.scene.len())
+    };
+    let tree = py
+        .detach(|| pool.install(|| snapshot.build(&run)))
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let mut state = scene.lock();
+    state.stale = state.scene.len() != len;
+    state.built = Some((Arc::new(tree), options.threads));
+    Ok(())
 }
 
 /// `transform=`: a 4x4 or 3x4 array of finite numbers.
@@ -103,7 +116,7 @@ fn transform_arg(obj: &Bound<'_, PyAny>) -> PyResult<Transform> {
     })
 }
 
-#[pymethods]
+queries::methods! {
 impl PyScene {
     #[new]
     fn new() -> Self {
@@ -122,7 +135,7 @@ impl PyScene {
         let built = match (&state.built, state.stale) {
             (None, _) => "not built".to_string(),
             (Some(_), true) => "changed since build".to_string(),
-            (Some(b), false) => format!("{} placed triangles", b.tree.tree().triangles().len()),
+            (Some((tree, _)), false) => format!("{} placed triangles", tree.tree().triangles().len()),
         };
         format!("<sahkd.Scene: {} geometries, {built}>", state.scene.len())
     }
@@ -165,154 +178,34 @@ impl PyScene {
         state.stale = true;
         Ok(id as i64)
     }
-
+}
+build {
     /// Builds the tree over every placed triangle; options as for KdTree.
-    #[pyo3(
-        signature = (preset=None, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost),
-        text_signature = "(self, preset=None, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost)"
-    )]
-    #[allow(clippy::too_many_arguments)]
-    fn build(
-        &self,
-        py: Python<'_>,
-        preset: Option<&Bound<'_, PyAny>>,
-        algorithm: Option<&Bound<'_, PyAny>>,
-        axes: Option<&Bound<'_, PyAny>>,
-        counting: Option<&Bound<'_, PyAny>>,
-        clip: Option<&Bound<'_, PyAny>>,
-        threads: Option<&Bound<'_, PyAny>>,
-        bins: Option<&Bound<'_, PyAny>>,
-        cost: Option<&Bound<'_, PyDict>>,
-    ) -> PyResult<()> {
-        let threads = threads_arg(options::int_arg(threads, "threads")?)?;
-        let args = options::BuildArgs {
-            preset,
-            algorithm,
-            axes,
-            counting,
-            clip,
-            threads,
-            bins,
-        };
-        let options = options::build_options(args, cost)?;
-        let pool = pool_of(threads)?;
-        let run = sahkd::BuildOptions {
-            threads: None,
-            ..options
-        };
-        // A snapshot (the meshes are shared, not copied): the scene may change meanwhile,
-        // and then this build is already stale.
-        let (scene, len) = {
-            let state = self.lock();
-            (state.scene.clone(), state.scene.len())
-        };
-        let tree = py
-            .detach(|| pool.install(|| scene.build(&run)))
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        let mut state = self.lock();
-        state.stale = state.scene.len() != len;
-        state.built = Some(Arc::new(Built { tree, threads }));
-        Ok(())
-    }
-
+    build(&self, py: Python<'_>) -> ()
+        = build_scene(self, py), [],
+        "(self, preset=None, algorithm=None, axes=None, counting=None, clip=None, threads=None, bins=None, **cost)";
+}
+rays {
     /// SceneHits(t, prim, u, v, geometry_id): KdTree.intersect's answer (same arguments,
     /// dtypes and miss values; prim is the face in the geometry's mesh, u, v its
     /// barycentrics), and geometry_id (int64, -1 on a miss). Ties in t go to the lower
     /// geometry id, then the lower face.
-    #[pyo3(signature = (origins, directions, t_min=None, t_max=None, precision="f32"), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf, precision='f32')")]
-    fn intersect<'py>(
-        &self,
-        py: Python<'py>,
-        origins: &Bound<'py, PyAny>,
-        directions: &Bound<'py, PyAny>,
-        t_min: Option<&Bound<'py, PyAny>>,
-        t_max: Option<&Bound<'py, PyAny>>,
-        precision: &str,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let rays = Rays::read(origins, directions, t_min, t_max, precision)?;
-        let built = self.built()?;
-        let columns = rays::closest(py, &built.tree, &rays, &*pool_of(built.threads)?)?;
-        namedtuple(py, &SCENE_HITS, "SceneHits")?.call1(columns)
-    }
-
+    intersect(precision: &str = "f32") -> PyAny = queries::intersect, "(self, origins, directions, t_min=0.0, t_max=math.inf, precision='f32')";
     /// Whether each ray hits any geometry with t_min <= t <= t_max, as a bool array;
     /// arguments as for intersect.
-    #[pyo3(signature = (origins, directions, t_min=None, t_max=None, precision="f32"), text_signature = "(self, origins, directions, t_min=0.0, t_max=math.inf, precision='f32')")]
-    fn occluded<'py>(
-        &self,
-        py: Python<'py>,
-        origins: &Bound<'py, PyAny>,
-        directions: &Bound<'py, PyAny>,
-        t_min: Option<&Bound<'py, PyAny>>,
-        t_max: Option<&Bound<'py, PyAny>>,
-        precision: &str,
-    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let rays = Rays::read(origins, directions, t_min, t_max, precision)?;
-        let built = self.built()?;
-        rays::occluded(py, &built.tree, &rays, &*pool_of(built.threads)?)
-    }
-
+    occluded(precision: &str = "f32") -> PyArray1<bool> = queries::occluded, "(self, origins, directions, t_min=0.0, t_max=math.inf, precision='f32')";
+}
+points {
     /// SceneClosest(point, distance, prim, geometry_id): KdTree.closest_point's answer over
     /// every geometry (ties to the lower geometry id, then face), and the geometry (int64).
     /// An empty scene gives NaN points, infinite distances, prim and geometry_id -1.
-    #[pyo3(text_signature = "(self, points)")]
-    fn closest_point<'py>(
-        &self,
-        py: Python<'py>,
-        points: &Bound<'py, PyAny>,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let points = arrays::query_points(points)?;
-        let built = self.built()?;
-        let pool = pool_of(built.threads)?;
-        let tree = &built.tree;
-        let columns = py.detach(|| {
-            let found = pool.install(|| tree.closest_point_batch(&points));
-            ClosestColumns::new(&found, |c| (c.point, c.distance, c.prim))
-                .and_geometry(&found, |c| c.geometry)
-        });
-        namedtuple(py, &SCENE_CLOSEST, "SceneClosest")?.call1(columns.into_tuple(py)?)
-    }
-
+    closest_point() -> PyAny = queries::closest_point, "(self, points)";
     /// Distance from each point to the nearest geometry, (N,) float64 (inf on an empty scene).
-    #[pyo3(text_signature = "(self, points)")]
-    fn distance<'py>(
-        &self,
-        py: Python<'py>,
-        points: &Bound<'py, PyAny>,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let built = self.built()?;
-        let pool = pool_of(built.threads)?;
-        per_point(py, points, &pool, |p| built.tree.distance_batch(p))
-    }
-
+    distance() -> PyArray1<f64> = queries::distance, "(self, points)";
     /// The distance, negative inside any geometry, (N,) float64; inside as for KdTree
     /// ("parity" or "winding"), each geometry judged alone.
-    #[pyo3(signature = (points, inside="parity"), text_signature = "(self, points, inside='parity')")]
-    fn signed_distance<'py>(
-        &self,
-        py: Python<'py>,
-        points: &Bound<'py, PyAny>,
-        inside: &str,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let test = inside_arg(inside)?;
-        let built = self.built()?;
-        let pool = pool_of(built.threads)?;
-        per_point(py, points, &pool, |p| {
-            built.tree.signed_distance_batch(p, test)
-        })
-    }
-
+    signed_distance(inside: &str = "parity") -> PyArray1<f64> = queries::signed_distance, "(self, points, inside='parity')";
     /// Whether each point is inside any geometry, (N,) bool; inside as for signed_distance.
-    #[pyo3(signature = (points, inside="parity"), text_signature = "(self, points, inside='parity')")]
-    fn contains<'py>(
-        &self,
-        py: Python<'py>,
-        points: &Bound<'py, PyAny>,
-        inside: &str,
-    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let test = inside_arg(inside)?;
-        let built = self.built()?;
-        let pool = pool_of(built.threads)?;
-        per_point(py, points, &pool, |p| built.tree.contains_batch(p, test))
-    }
+    contains(inside: &str = "parity") -> PyArray1<bool> = queries::contains, "(self, points, inside='parity')";
+}
 }

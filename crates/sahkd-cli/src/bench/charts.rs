@@ -5,8 +5,11 @@
 use super::table::{speedup, table_ms, COLUMNS};
 use super::Results;
 use anyhow::{anyhow, Result};
+use plotters::coord::types::RangedCoordf64;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
+use std::ops::Range;
 use std::path::Path;
 use std::sync::Once;
 
@@ -237,6 +240,41 @@ fn draw_table1(buffer: &mut [u8], path: &Path, results: &Results) -> Result<()> 
 }
 
 /// Fig. 1: P_n = (T_n - T_sort) / (T_1 - T_sort) for n = 1 .. 7 on the largest scene.
+/// A figure's chart over its whole picture: a bold caption, linear axes over the ranges
+/// `x` and `y` with `y_area` pixels for the y labels, whole-number ticks along x, and the
+/// axes' descriptions.
+fn figure<'a, 'b>(
+    path: &Path,
+    root: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    caption: String,
+    y_area: u32,
+    (x, y): (Range<f64>, Range<f64>),
+    (x_labels, x_desc, y_desc): (usize, &str, &str),
+) -> Result<ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>> {
+    let mut chart = draw!(
+        path,
+        ChartBuilder::on(root)
+            .caption(caption, (FONT, 28).into_font().style(FontStyle::Bold))
+            .margin(20)
+            .x_label_area_size(55)
+            .y_label_area_size(y_area)
+            .build_cartesian_2d(x, y)
+    );
+    draw!(
+        path,
+        chart
+            .configure_mesh()
+            .x_labels(x_labels)
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .x_desc(x_desc)
+            .y_desc(y_desc)
+            .label_style((FONT, 18))
+            .axis_desc_style((FONT, 20))
+            .draw()
+    );
+    Ok(chart)
+}
+
 fn draw_fig1(buffer: &mut [u8], path: &Path, results: &Results) -> Result<()> {
     register_fonts();
     let root = BitMapBackend::with_buffer(buffer, SIZE).into_drawing_area();
@@ -250,30 +288,18 @@ fn draw_fig1(buffer: &mut [u8], path: &Path, results: &Results) -> Result<()> {
         .filter(|p| p.is_finite())
         .fold(1.0f64, f64::max)
         * 1.1;
-    let mut chart = draw!(
+    let mut chart = figure(
         path,
-        ChartBuilder::on(&root)
-            .caption(
-                format!("Fig. 1: time to build the first n levels, {scene}, relative to one level"),
-                (FONT, 28).into_font().style(FontStyle::Bold),
-            )
-            .margin(20)
-            .x_label_area_size(55)
-            .y_label_area_size(90)
-            .build_cartesian_2d(0.5f64..levels + 0.5, 0f64..top)
-    );
-    draw!(
-        path,
-        chart
-            .configure_mesh()
-            .x_labels(results.settings.fig1_levels as usize)
-            .x_label_formatter(&|x| format!("{x:.0}"))
-            .x_desc("levels built, n (tree depth limited to n)")
-            .y_desc("P_n = median(T_n - T_sort) / median(T_1 - T_sort)")
-            .label_style((FONT, 18))
-            .axis_desc_style((FONT, 20))
-            .draw()
-    );
+        &root,
+        format!("Fig. 1: time to build the first n levels, {scene}, relative to one level"),
+        90,
+        (0.5f64..levels + 0.5, 0f64..top),
+        (
+            results.settings.fig1_levels as usize,
+            "levels built, n (tree depth limited to n)",
+            "P_n = median(T_n - T_sort) / median(T_1 - T_sort)",
+        ),
+    )?;
     for curve in &results.levels {
         let c = colour(if curve.algorithm == "level" { 3 } else { 1 });
         let points: Vec<(f64, f64)> = curve
@@ -337,33 +363,19 @@ fn draw_fig2(buffer: &mut [u8], path: &Path, results: &Results) -> Result<()> {
 
     let root = BitMapBackend::with_buffer(buffer, SIZE).into_drawing_area();
     draw!(path, root.fill(&WHITE));
-    let mut chart = draw!(
+    let plural = if base == 1 { "" } else { "s" };
+    let mut chart = figure(
         path,
-        ChartBuilder::on(&root)
-            .caption(
-                format!(
-                    "Fig. 2: build speed-up against {base} thread{}",
-                    if base == 1 { "" } else { "s" }
-                ),
-                (FONT, 28).into_font().style(FontStyle::Bold),
-            )
-            .margin(20)
-            .x_label_area_size(55)
-            .y_label_area_size(80)
-            .build_cartesian_2d(0f64..max_threads + 0.5, 0f64..top)
-    );
-    draw!(
-        path,
-        chart
-            .configure_mesh()
-            .x_labels(max_threads as usize + 1)
-            .x_label_formatter(&|x| format!("{x:.0}"))
-            .x_desc("worker threads")
-            .y_desc("speed-up (median time at base / median time at n threads)")
-            .label_style((FONT, 18))
-            .axis_desc_style((FONT, 20))
-            .draw()
-    );
+        &root,
+        format!("Fig. 2: build speed-up against {base} thread{plural}"),
+        80,
+        (0f64..max_threads + 0.5, 0f64..top),
+        (
+            max_threads as usize + 1,
+            "worker threads",
+            "speed-up (median time at base / median time at n threads)",
+        ),
+    )?;
     // Threads beyond the cores share them: shade that part and say so.
     if cores < max_threads + 0.5 {
         draw!(

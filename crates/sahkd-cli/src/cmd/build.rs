@@ -6,7 +6,7 @@ use super::Context;
 use crate::format::{self, Table};
 use crate::gpu::GpuReport;
 use crate::input::{self, Loaded, MeshArg, Source};
-use crate::options::{switch_name, Builder, BuilderArgs, DeviceArg};
+use crate::options::{switch_name, Builder, BuilderArgs, DeviceArg, OptionsReport};
 use crate::output;
 use crate::progress::Progress;
 use crate::resident::PeakResident;
@@ -48,14 +48,8 @@ pub struct Report<'a> {
     device: &'static str,
     /// With `--device gpu`: the adapter, upload, per-phase and download times, round trips.
     gpu: Option<&'a GpuReport>,
-    /// The preset the options started from (options given beside it override it).
-    preset: Option<&'static str>,
-    algorithm: &'static str,
-    axes: &'static str,
-    counting: &'static str,
-    clip: bool,
-    /// Bins of the binned SAH for big nodes; 0: exact SAH everywhere.
-    bins: u32,
+    #[serde(flatten)]
+    options: OptionsReport,
     threads: usize,
     load_ms: f64,
     build_ms: f64,
@@ -208,12 +202,7 @@ impl Built {
                 DeviceArg::Gpu => "gpu",
             },
             gpu: self.gpu.as_ref(),
-            preset: options.preset.map(|p| p.name()),
-            algorithm: options.algorithm.name(),
-            axes: options.axes.name(),
-            counting: options.counting.name(),
-            clip: options.clip,
-            bins: options.resolved_bins(),
+            options: OptionsReport::of(options),
             threads: builder.threads(),
             load_ms: self.loaded.load_ms,
             build_ms: report.build_ms,

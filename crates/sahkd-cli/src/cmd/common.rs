@@ -14,7 +14,8 @@ use anyhow::Result;
 use npyz::npz::NpzWriter;
 use npyz::WriterBuilder;
 use sahkd::builders::BuildReport;
-use sahkd::Build;
+use sahkd::{Build, KdTree};
+use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
 
@@ -28,7 +29,7 @@ pub struct Prepared<T> {
     pub layout_ms: f64,
 }
 
-pub fn prepare<T>(
+fn prepare<T>(
     mesh: &MeshArg,
     builder: &BuilderArgs,
     data: &Path,
@@ -69,6 +70,98 @@ pub fn prepare<T>(
         loaded,
         built,
         layout_ms,
+    })
+}
+
+/// The files and options of a `trace` or `query` call.
+pub struct Inputs<'a> {
+    pub mesh: &'a MeshArg,
+    pub builder: &'a BuilderArgs,
+    /// The array file read.
+    pub data: &'a Path,
+    pub output: &'a Path,
+}
+
+/// What [`run`] did: the prepared inputs, the answers and how long they took.
+pub struct Ran<T, A> {
+    pub prepared: Prepared<T>,
+    pub answers: A,
+    pub work_ms: f64,
+}
+
+impl<T, A> Ran<T, A> {
+    /// The part of the JSON report every such command has.
+    pub fn report(&self) -> RunReport {
+        let Prepared {
+            builder,
+            loaded,
+            built,
+            layout_ms,
+            ..
+        } = &self.prepared;
+        RunReport {
+            source: loaded.source.name(),
+            triangles: built.tree.triangles().len(),
+            threads: builder.threads(),
+            load_ms: loaded.load_ms,
+            build_ms: built.report.build_ms,
+            layout_ms: *layout_ms,
+        }
+    }
+
+    /// Millions of `items` per second of the work.
+    pub fn rate(&self, items: usize) -> f64 {
+        if self.work_ms > 0.0 {
+            items as f64 / (self.work_ms * 1e3)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The fields [`Ran::report`] fills, flattened into each command's report.
+#[derive(Serialize)]
+pub struct RunReport {
+    pub source: String,
+    pub triangles: usize,
+    pub threads: usize,
+    pub load_ms: f64,
+    pub build_ms: f64,
+    /// Making the tree's walk layout, done once before the work (not part of its time).
+    pub layout_ms: f64,
+}
+
+/// [`prepare`], then `work` on the data in the builder's pool, timed, then the answers
+/// written to the output by `write`, behind a spinner.
+pub fn run<T: Sync, A: Send>(
+    inputs: Inputs<'_>,
+    context: &Context,
+    progress: &Progress,
+    read: impl FnOnce(&Path) -> Result<T>,
+    work: impl FnOnce(&KdTree, &T, &Progress) -> A + Send,
+    write: impl FnOnce(&Path, &T, &A) -> Result<()>,
+) -> Result<Ran<T, A>> {
+    let Inputs {
+        mesh,
+        builder,
+        data,
+        output,
+    } = inputs;
+    let prepared = prepare(mesh, builder, data, output, context, progress, read)?;
+    let start = Instant::now();
+    let answers = prepared
+        .builder
+        .install(|| work(&prepared.built.tree, &prepared.data, progress));
+    let work_ms = start.elapsed().as_secs_f64() * 1e3;
+
+    let spinner = progress.spinner(format!("writing {}", output.display()));
+    let written = write(output, &prepared.data, &answers);
+    spinner.finish_and_clear();
+    written?;
+    Ok(Ran {
+        prepared,
+        answers,
+        work_ms,
     })
 }
 

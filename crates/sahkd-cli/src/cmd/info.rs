@@ -4,6 +4,7 @@
 use super::Context;
 use crate::format::{self, Table};
 use crate::input::{self, Loaded, MeshArg, Source};
+use crate::options::OptionsReport;
 use crate::progress::Progress;
 use anyhow::Result;
 use sahkd::{KdTree, Mesh, TreeMeta};
@@ -85,14 +86,8 @@ struct TreeReport {
     references: usize,
     max_depth: u32,
     sah_cost: f64,
-    /// The preset the saved tree's options started from (none in files from before presets).
-    preset: Option<&'static str>,
-    algorithm: &'static str,
-    axes: &'static str,
-    counting: &'static str,
-    clip: bool,
-    /// Bins of the binned SAH for big nodes; 0: exact.
-    bins: u32,
+    #[serde(flatten)]
+    options: OptionsReport,
     /// How the saved tree's build went.
     build_ms: f64,
     presort_ms: f64,
@@ -158,12 +153,7 @@ fn tree_info(loaded: &Loaded, tree: &KdTree, meta: &TreeMeta, json: bool) -> Res
         references: stats.references,
         max_depth: stats.max_depth,
         sah_cost: stats.sah_cost,
-        preset: o.preset.map(|p| p.name()),
-        algorithm: o.algorithm.name(),
-        axes: o.axes.name(),
-        counting: o.counting.name(),
-        clip: o.clip,
-        bins: o.resolved_bins(),
+        options: OptionsReport::of(o),
         build_ms: meta.build_ms,
         presort_ms: meta.presort_ms,
         build_threads: meta.build_threads,
@@ -186,13 +176,14 @@ fn tree_info(loaded: &Loaded, tree: &KdTree, meta: &TreeMeta, json: bool) -> Res
             format!(
                 "{}{}, {} axes, {} counting, clip {}{}, {} threads, in {}",
                 report
+                    .options
                     .preset
                     .map_or(String::new(), |p| format!("preset {p}: ")),
-                report.algorithm,
-                report.axes,
-                report.counting,
-                if report.clip { "on" } else { "off" },
-                match report.bins {
+                report.options.algorithm,
+                report.options.axes,
+                report.options.counting,
+                if report.options.clip { "on" } else { "off" },
+                match report.options.bins {
                     0 => String::new(),
                     n => format!(", {n} bins"),
                 },

@@ -2,7 +2,7 @@
 //! of points from a `.npy` file against a mesh, written to `.npz`. Same input, output and
 //! error rules as `trace`.
 
-use super::common::{self, write_array, Prepared};
+use super::common::{self, write_array, RunReport};
 use super::Context;
 use crate::format;
 use crate::input::MeshArg;
@@ -14,7 +14,6 @@ use anyhow::Result;
 use sahkd::{ClosestPoint, InsideTest, KdTree, Vec3};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -54,16 +53,11 @@ pub struct Args {
 
 #[derive(Serialize)]
 struct Report {
-    source: String,
-    triangles: usize,
+    #[serde(flatten)]
+    run: RunReport,
     points: usize,
     signed: bool,
     inside_test: Option<&'static str>,
-    threads: usize,
-    load_ms: f64,
-    build_ms: f64,
-    /// Making the tree's walk layout, done once before the points (not part of `query_ms`).
-    layout_ms: f64,
     query_ms: f64,
     mpoints_per_s: f64,
     /// Points inside the mesh (with --signed).
@@ -78,54 +72,36 @@ type Answer = (Option<ClosestPoint>, Option<bool>);
 
 pub fn run(args: Args, context: &Context) -> Result<()> {
     let progress = Progress::new(context.quiet, args.json);
-    let Prepared {
-        builder,
-        data: points,
-        loaded,
-        built,
-        layout_ms,
-    } = common::prepare(
-        &args.mesh,
-        &args.builder,
-        &args.points,
-        &args.output,
+    let inputs = common::Inputs {
+        mesh: &args.mesh,
+        builder: &args.builder,
+        data: &args.points,
+        output: &args.output,
+    };
+    let test = args.signed.then_some(args.inside_test);
+    let ran = common::run(
+        inputs,
         context,
         &progress,
         rays::read_points,
+        |tree, points, progress| query(tree, points, test, progress),
+        |output, points, answers| write_answers(output, points, answers, args.signed),
     )?;
-    let start = Instant::now();
-    let test = args.signed.then_some(args.inside_test);
-    let answers = builder.install(|| query(&built.tree, &points, test, &progress));
-    let query_ms = start.elapsed().as_secs_f64() * 1e3;
-
-    let spinner = progress.spinner(format!("writing {}", args.output.display()));
-    let written = write_answers(&args.output, &points, &answers, args.signed);
-    spinner.finish_and_clear();
-    written?;
-
+    let (points, answers) = (&ran.prepared.data, &ran.answers);
     let report = Report {
-        source: loaded.source.name(),
-        triangles: built.tree.triangles().len(),
+        run: ran.report(),
         points: points.len(),
         signed: args.signed,
         inside_test: test.map(|t| match t {
             InsideTest::Parity => "parity",
             InsideTest::Winding => "winding",
         }),
-        threads: builder.threads(),
-        load_ms: loaded.load_ms,
-        build_ms: built.report.build_ms,
-        layout_ms,
-        query_ms,
-        mpoints_per_s: if query_ms > 0.0 {
-            points.len() as f64 / (query_ms * 1e3)
-        } else {
-            0.0
-        },
+        query_ms: ran.work_ms,
+        mpoints_per_s: ran.rate(points.len()),
         inside: args
             .signed
             .then(|| answers.iter().filter(|a| a.1 == Some(true)).count()),
-        resident: PeakResident::now(built.tree.triangles().len()),
+        resident: PeakResident::now(ran.prepared.built.tree.triangles().len()),
     };
     if args.json {
         format::print_json(&report)?;
@@ -137,13 +113,13 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         eprintln!(
             "{} points on {} triangles of {}{inside}; build {}, layout {}, query {}, {:.2} Mpoints/s on {} threads; wrote {}",
             format::count(report.points as u64),
-            format::count(report.triangles as u64),
-            report.source,
-            format::ms(report.build_ms),
-            format::ms(report.layout_ms),
+            format::count(report.run.triangles as u64),
+            report.run.source,
+            format::ms(report.run.build_ms),
+            format::ms(report.run.layout_ms),
             format::ms(report.query_ms),
             report.mpoints_per_s,
-            report.threads,
+            report.run.threads,
             args.output.display()
         );
     }

@@ -1,6 +1,6 @@
 //! `sahkd trace`: trace rays from a `.npy` file against a mesh and write the hits to `.npz`.
 
-use super::common::{self, write_array, Prepared};
+use super::common::{self, write_array, RunReport};
 use super::Context;
 use crate::format;
 use crate::input::MeshArg;
@@ -12,7 +12,6 @@ use anyhow::Result;
 use sahkd::{Hit, Hit64, KdTree, Ray, Ray64};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -57,16 +56,11 @@ pub enum Precision {
 
 #[derive(Serialize)]
 struct Report {
-    source: String,
-    triangles: usize,
+    #[serde(flatten)]
+    run: RunReport,
     rays: usize,
     any_hit: bool,
     precision: Precision,
-    threads: usize,
-    load_ms: f64,
-    build_ms: f64,
-    /// Making the tree's trace layout, done once before the rays (not part of `trace_ms`).
-    layout_ms: f64,
     trace_ms: f64,
     mrays_per_s: f64,
     hits: usize,
@@ -94,49 +88,31 @@ impl Hits {
 
 pub fn run(args: Args, context: &Context) -> Result<()> {
     let progress = Progress::new(context.quiet, args.json);
-    let Prepared {
-        builder,
-        data: rays,
-        loaded,
-        built,
-        layout_ms,
-    } = common::prepare(
-        &args.mesh,
-        &args.builder,
-        &args.rays,
-        &args.output,
+    let inputs = common::Inputs {
+        mesh: &args.mesh,
+        builder: &args.builder,
+        data: &args.rays,
+        output: &args.output,
+    };
+    let (any_hit, precision) = (args.any_hit, args.precision);
+    let ran = common::run(
+        inputs,
         context,
         &progress,
         rays::read,
+        |tree, rays, progress| trace(tree, rays, any_hit, precision, progress),
+        |output, _, hits| write_hits(output, hits),
     )?;
-    let start = Instant::now();
-    let hits =
-        builder.install(|| trace(&built.tree, &rays, args.any_hit, args.precision, &progress));
-    let trace_ms = start.elapsed().as_secs_f64() * 1e3;
-
-    let spinner = progress.spinner(format!("writing {}", args.output.display()));
-    let written = write_hits(&args.output, &hits);
-    spinner.finish_and_clear();
-    written?;
-
+    let rays = &ran.prepared.data;
     let report = Report {
-        source: loaded.source.name(),
-        triangles: built.tree.triangles().len(),
+        run: ran.report(),
         rays: rays.len(),
-        any_hit: args.any_hit,
-        precision: args.precision,
-        threads: builder.threads(),
-        load_ms: loaded.load_ms,
-        build_ms: built.report.build_ms,
-        layout_ms,
-        trace_ms,
-        mrays_per_s: if trace_ms > 0.0 {
-            rays.len() as f64 / (trace_ms * 1e3)
-        } else {
-            0.0
-        },
-        hits: hits.count(),
-        resident: PeakResident::now(built.tree.triangles().len()),
+        any_hit,
+        precision,
+        trace_ms: ran.work_ms,
+        mrays_per_s: ran.rate(rays.len()),
+        hits: ran.answers.count(),
+        resident: PeakResident::now(ran.prepared.built.tree.triangles().len()),
     };
     if args.json {
         format::print_json(&report)?;
@@ -144,14 +120,14 @@ pub fn run(args: Args, context: &Context) -> Result<()> {
         eprintln!(
             "{} rays on {} triangles of {}: {} hit; build {}, trace layout {}, trace {}, {:.2} Mrays/s on {} threads; wrote {}",
             format::count(report.rays as u64),
-            format::count(report.triangles as u64),
-            report.source,
+            format::count(report.run.triangles as u64),
+            report.run.source,
             format::count(report.hits as u64),
-            format::ms(report.build_ms),
-            format::ms(report.layout_ms),
+            format::ms(report.run.build_ms),
+            format::ms(report.run.layout_ms),
             format::ms(report.trace_ms),
             report.mrays_per_s,
-            report.threads,
+            report.run.threads,
             args.output.display()
         );
     }
@@ -205,30 +181,36 @@ fn trace(
 }
 
 fn write_hits(path: &Path, hits: &Hits) -> Result<()> {
-    common::write_npz(path, |npz| {
-        match hits {
-            Hits::Closest(h) => {
-                let t = h.iter().map(|h| h.map_or(f32::INFINITY, |h| h.t));
-                let prim = h.iter().map(|h| h.map_or(-1, |h| i64::from(h.prim)));
-                let u = h.iter().map(|h| h.map_or(0.0, |h| h.u));
-                let v = h.iter().map(|h| h.map_or(0.0, |h| h.v));
-                write_array(npz, "t", &[h.len() as u64], t)?;
-                write_array(npz, "prim", &[h.len() as u64], prim)?;
-                write_array(npz, "u", &[h.len() as u64], u)?;
-                write_array(npz, "v", &[h.len() as u64], v)?;
-            }
-            Hits::Closest64(h) => {
-                let t = h.iter().map(|h| h.map_or(f64::INFINITY, |h| h.t));
-                let prim = h.iter().map(|h| h.map_or(-1, |h| i64::from(h.prim)));
-                let u = h.iter().map(|h| h.map_or(0.0, |h| h.u));
-                let v = h.iter().map(|h| h.map_or(0.0, |h| h.v));
-                write_array(npz, "t", &[h.len() as u64], t)?;
-                write_array(npz, "prim", &[h.len() as u64], prim)?;
-                write_array(npz, "u", &[h.len() as u64], u)?;
-                write_array(npz, "v", &[h.len() as u64], v)?;
-            }
-            Hits::Any(h) => write_array(npz, "hit", &[h.len() as u64], h.iter().copied())?,
-        }
-        Ok(())
+    common::write_npz(path, |npz| match hits {
+        Hits::Closest(h) => write_closest(npz, h, f32::INFINITY, |h| (h.t, h.prim, h.u, h.v)),
+        Hits::Closest64(h) => write_closest(npz, h, f64::INFINITY, |h| (h.t, h.prim, h.u, h.v)),
+        Hits::Any(h) => write_array(npz, "hit", &[h.len() as u64], h.iter().copied()),
     })
+}
+
+/// The arrays `t`, `prim`, `u`, `v` of closest hits in either precision; `row` gives a hit's
+/// (t, prim, u, v), and a miss is (`miss`, -1, 0, 0).
+fn write_closest<H, F: npyz::AutoSerialize + Default + Copy>(
+    npz: &mut common::Npz,
+    hits: &[Option<H>],
+    miss: F,
+    row: impl Fn(&H) -> (F, u32, F, F),
+) -> std::io::Result<()> {
+    let shape = [hits.len() as u64];
+    let rows = || hits.iter().map(|h| h.as_ref().map(&row));
+    write_array(npz, "t", &shape, rows().map(|h| h.map_or(miss, |h| h.0)))?;
+    let prim = rows().map(|h| h.map_or(-1, |h| i64::from(h.1)));
+    write_array(npz, "prim", &shape, prim)?;
+    write_array(
+        npz,
+        "u",
+        &shape,
+        rows().map(|h| h.map_or(F::default(), |h| h.2)),
+    )?;
+    write_array(
+        npz,
+        "v",
+        &shape,
+        rows().map(|h| h.map_or(F::default(), |h| h.3)),
+    )
 }
