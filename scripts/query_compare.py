@@ -4,8 +4,9 @@ and compares their answers with sahkd's.
     cargo run --release -p sahkd --example query_throughput -- MESH --dump DIR
     python scripts/query_compare.py DIR [--threads 2] [--trimesh-points 200]
 
-Open3D (`pip install open3d`; it needs libusb-1.0-0) gets the triangles as a soup (F, 3, 3)
-and every point; trimesh (with scipy) only the first --trimesh-points points, it being slow.
+Open3D (`pip install open3d`; it needs libusb-1.0-0) gets the indexed mesh as its users hand it
+over (`RaycastingScene.add_triangles(vertices, faces)`) and every point; trimesh (with scipy)
+the same mesh and only the first --trimesh-points points, it being slow.
 Rates are points per second of the median of three runs (trimesh: one). Agreement: the
 largest difference of distances, and the share of points more than 1e-4 of the diagonal
 from the surface whose inside/outside answers differ from sahkd's.
@@ -41,8 +42,8 @@ def main():
     distance = np.load(d / "distance.npy")
     signed = np.load(d / "signed.npy")
     inside = np.load(d / "inside.npy") > 0.5
-    vertices = tri.reshape(-1, 3)
-    faces = np.arange(len(vertices), dtype=np.uint32).reshape(-1, 3)
+    vertices = np.load(d / "vertices.npy")
+    faces = np.load(d / "faces.npy").astype(np.uint32)
     diag = np.linalg.norm(vertices.max(0) - vertices.min(0))
     away = np.abs(distance) > 1e-4 * diag
     n = len(points)

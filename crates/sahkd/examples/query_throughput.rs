@@ -12,8 +12,9 @@
 //! `contains_batch` with the default parity test); the median and min-max Mpoints/s are
 //! printed. `--check K` compares K of the points' closest points, single and batched, with
 //! the brute force first.
-//! `--dump DIR` writes `triangles.npy` (F, 3, 3) and `points.npy` (N, 3) as float32, and
-//! sahkd's answers (`distance.npy`, `signed.npy` float64, `inside.npy` as float32 0/1), for
+//! `--dump DIR` writes the mesh as read (`vertices.npy` (V, 3) float32 and `faces.npy` (F, 3)
+//! int32: face `i` is the tree's triangle `i`), `triangles.npy` (F, 3, 3) and `points.npy`
+//! (N, 3) as float32, and sahkd's answers (`distance.npy`, `signed.npy` float64, `inside.npy` as float32 0/1), for
 //! `scripts/query_compare.py`.
 
 use rand::rngs::StdRng;
@@ -146,9 +147,22 @@ fn f64_bytes(x: impl Iterator<Item = f64>) -> Vec<u8> {
     x.flat_map(f64::to_le_bytes).collect()
 }
 
-fn dump(dir: &str, tree: &KdTree, points: &[Vec3]) -> std::io::Result<()> {
+fn dump(dir: &str, mesh: &Mesh, tree: &KdTree, points: &[Vec3]) -> std::io::Result<()> {
     let dir = Path::new(dir);
     std::fs::create_dir_all(dir)?;
+    write_npy(
+        &dir.join("vertices.npy"),
+        "<f4",
+        &[mesh.vertices.len(), 3],
+        &f32_bytes(mesh.vertices.iter().flatten().copied()),
+    )?;
+    let faces = mesh.triangles.iter().flatten().map(|&i| i as i32);
+    write_npy(
+        &dir.join("faces.npy"),
+        "<i4",
+        &[mesh.triangles.len(), 3],
+        &faces.flat_map(i32::to_le_bytes).collect::<Vec<u8>>(),
+    )?;
     let tris = tree.triangles();
     let corners = tris.iter().flat_map(|t| t.iter().flat_map(|v| v.0));
     write_npy(
@@ -220,7 +234,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
     }
     if let Some(dir) = &args.dump {
-        dump(dir, &tree, &points)?;
+        dump(dir, &mesh, &tree, &points)?;
         println!("wrote {dir}");
     }
     // Closest points and occupancy per class of the mix, one thread: where the time goes.
