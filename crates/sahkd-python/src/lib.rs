@@ -25,6 +25,9 @@ use pyo3::types::{PyBytes, PyDict, PyTuple, PyType};
 use rayon::ThreadPool;
 use sahkd::{Hit, InsideTest, KdTree, LoadError, TreeMeta as Meta, TreeStats, Vec3};
 
+/// A mesh's vertices and faces, as `_read_mesh` returns them.
+type MeshArrays<'py> = (Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<i64>>);
+
 /// Nodes as (N, 2) words and the references, as `_structure` returns them.
 type Structure<'py> = (Bound<'py, PyArray2<u32>>, Bound<'py, PyArray1<u32>>);
 
@@ -484,6 +487,35 @@ fn load(py: Python<'_>, path: PathBuf) -> PyResult<PyKdTree> {
     Ok(PyKdTree::from_tree(tree, meta))
 }
 
+/// The vertices ((V, 3) float32) and faces ((F, 3) int64) of a mesh file, as the library
+/// reads it for the CLI (`sahkd::Mesh::load`: PLY, ASCII or binary, and OBJ; polygons split
+/// into fans); raises OSError if the file cannot be read and ValueError, naming the file,
+/// if it is not a mesh it can read.
+#[pyfunction]
+fn _read_mesh(py: Python<'_>, path: PathBuf) -> PyResult<MeshArrays<'_>> {
+    let mesh = py
+        .detach(|| sahkd::Mesh::load(&path))
+        .map_err(|e| match e {
+            sahkd::MeshError::Io { path, source } => PyErr::from(std::io::Error::new(
+                source.kind(),
+                format!("{path}: {source}"),
+            )),
+            e => PyValueError::new_err(e.to_string()),
+        })?;
+    let (v, f) = (mesh.vertices.len(), mesh.triangles.len());
+    let vertices: Vec<f32> = mesh.vertices.into_iter().flatten().collect();
+    let faces: Vec<i64> = mesh
+        .triangles
+        .into_iter()
+        .flatten()
+        .map(i64::from)
+        .collect();
+    Ok((
+        PyArray1::from_vec(py, vertices).reshape([v, 3])?,
+        PyArray1::from_vec(py, faces).reshape([f, 3])?,
+    ))
+}
+
 /// SAH kd-trees for ray casting (the Rust core of the sahkd package).
 #[pymodule]
 fn _sahkd(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -491,6 +523,7 @@ fn _sahkd(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<scene::PyScene>()?;
     m.add_function(wrap_pyfunction!(from_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
+    m.add_function(wrap_pyfunction!(_read_mesh, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -8,7 +8,8 @@ import sys
 import numpy as np
 import pytest
 
-from sahkd import _ply, compare
+from sahkd import compare
+from sahkd._sahkd import _read_mesh
 
 
 def write_ply(path, vertices, faces, order="<", extra_vertex_property=False, extra_element=False):
@@ -42,47 +43,45 @@ def sphere_mesh():
     "order, extra_vertex_property, extra_element",
     [("<", False, False), (">", True, False), ("<", True, True)],
 )
-def test_ply_reader_reads_binary_triangle_meshes(tmp_path, order, extra_vertex_property, extra_element):
+def test_the_mesh_reader_reads_binary_triangle_meshes(tmp_path, order, extra_vertex_property, extra_element):
     rng = np.random.default_rng(0)
     vertices = rng.normal(size=(30, 3)).astype(np.float32)
     faces = rng.integers(0, 30, (50, 3))
     path = tmp_path / "mesh.ply"
     write_ply(path, vertices, faces, order, extra_vertex_property, extra_element)
-    v, f = _ply.read_ply(path)
+    v, f = _read_mesh(path)
+    assert (v.dtype, f.dtype) == (np.float32, np.int64)
     np.testing.assert_array_equal(v, vertices)
     np.testing.assert_array_equal(f, faces)
 
 
-def test_ply_reader_agrees_with_trimesh_on_a_real_scene(scenes):
+def test_the_mesh_reader_agrees_with_trimesh_on_a_real_scene(scenes):
     trimesh = pytest.importorskip("trimesh")
     path = scenes / "dragon_res4.ply"
-    v, f = _ply.read_ply(path)
+    v, f = _read_mesh(path)
     mesh = trimesh.load(path, force="mesh", process=False)
     assert (len(v), len(f)) == (5205, 11102)
     np.testing.assert_array_equal(v, np.asarray(mesh.vertices, np.float32))
     np.testing.assert_array_equal(f, mesh.faces)
 
 
-def test_ply_reader_refuses_what_it_cannot_read(tmp_path):
-    ascii_ply = tmp_path / "ascii.ply"
-    ascii_ply.write_bytes(b"ply\nformat ascii 1.0\nelement vertex 0\nend_header\n")
-    with pytest.raises(ValueError, match="format 'ascii' is not supported"):
-        _ply.read_ply(ascii_ply)
-    not_ply = tmp_path / "x.ply"
-    not_ply.write_bytes(b"solid x\n")
-    with pytest.raises(ValueError, match="not a PLY file"):
-        _ply.read_ply(not_ply)
+def test_the_mesh_reader_splits_polygons_and_names_what_it_refuses(tmp_path):
     quads = tmp_path / "quads.ply"
     header = b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n"
     body = np.zeros(12, "<f4").tobytes() + struct.pack("<B4i", 4, 0, 1, 2, 3) + struct.pack("<B3i", 3, 0, 1, 2)
-    quads.write_bytes(header + body + b"\0" * 8)
-    with pytest.raises(ValueError, match="not all triangles"):
-        _ply.read_ply(quads)
+    quads.write_bytes(header + body)
+    assert _read_mesh(quads)[1].tolist() == [[0, 1, 2], [0, 2, 3], [0, 1, 2]]
+    not_ply = tmp_path / "x.ply"
+    not_ply.write_bytes(b"solid x\n")
+    with pytest.raises(ValueError, match="x.ply: .*not a PLY file"):
+        _read_mesh(not_ply)
     truncated = tmp_path / "short.ply"
     write_ply(truncated, np.zeros((3, 3)), [[0, 1, 2]])
     truncated.write_bytes(truncated.read_bytes()[:-5])
-    with pytest.raises(ValueError, match="truncated"):
-        _ply.read_ply(truncated)
+    with pytest.raises(ValueError, match="short.ply: "):
+        _read_mesh(truncated)
+    with pytest.raises(FileNotFoundError, match="missing.ply"):
+        _read_mesh(tmp_path / "missing.ply")
 
 
 def test_the_camera_looks_at_the_centre_from_twice_the_diagonal():
@@ -99,13 +98,13 @@ def test_the_camera_looks_at_the_centre_from_twice_the_diagonal():
     np.testing.assert_allclose([top[1] / -top[2], bottom[1] / -bottom[2]], [half, -half], rtol=1e-6)
 
 
-def test_without_trimesh_meshes_are_read_with_the_builtin_reader(tmp_path, monkeypatch):
+def test_without_trimesh_meshes_are_read_with_the_library_reader(tmp_path, monkeypatch):
     vertices, faces = sphere_mesh()
     path = tmp_path / "sphere.ply"
     write_ply(path, vertices, faces)
     monkeypatch.setitem(sys.modules, "trimesh", None)  # makes `import trimesh` fail
     v, f, reader = compare.load_mesh(path)
-    assert reader == "sahkd's PLY reader"
+    assert reader == "sahkd's mesh reader"
     np.testing.assert_array_equal(v, vertices)
     np.testing.assert_array_equal(f, faces)
 

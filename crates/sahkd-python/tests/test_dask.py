@@ -233,7 +233,7 @@ def test_map_meshes_results_in_order_and_a_clear_error_for_the_bad_one(sdask, re
     assert sum(1 for g in good if local(g)[3].max() >= 0) >= 2  # rays do hit these meshes
     bad = out[1]
     assert isinstance(bad, sdask.MeshFailure) and bad.path == corrupt
-    assert bad.message.startswith("ValueError: ") and "truncated" in bad.message
+    assert bad.message.startswith("ValueError: ") and "file ends after" in bad.message
     assert corrupt in bad.message  # the reader names the file too
     assert isinstance(out[3], sdask.MeshFailure) and out[3].path == missing
     assert out[3].message.startswith("FileNotFoundError")
@@ -290,5 +290,5 @@ def test_read_mesh_obj(sdask, tmp_path):
     np.testing.assert_array_equal(vertices, [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
     assert faces.tolist() == [[0, 1, 2], [0, 2, 3], [0, 2, 3]]
     (tmp_path / "bad.obj").write_text("v 0 0\n")
-    with pytest.raises(ValueError, match=r"bad.obj:1: a vertex needs"):
+    with pytest.raises(ValueError, match=r"bad.obj: line 1: "):
         sdask.read_mesh(tmp_path / "bad.obj")

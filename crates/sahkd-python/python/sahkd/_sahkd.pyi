@@ -9,7 +9,7 @@ import numpy.typing as npt
 
 from ._types import AllHits, Closest, Hits, SceneClosest, SceneHits
 
-__all__ = ["KdTree", "Scene", "from_bytes", "load", "__version__"]
+__all__ = ["KdTree", "Scene", "from_bytes", "load", "_read_mesh", "__version__"]
 
 __version__: str
 
@@ -142,3 +142,4 @@ class Scene:
 
 def from_bytes(data: bytes) -> KdTree: ...
 def load(path: _Path) -> KdTree: ...
+def _read_mesh(path: _Path) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.int64]]: ...

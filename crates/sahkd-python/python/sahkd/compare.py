@@ -10,7 +10,7 @@ million rays per second, the rays that hit, and how many rays agree with sahkd: 
 or both hit at distances within --tolerance (relative). trimesh's intersector is pure Python,
 so it casts an evenly spaced sample of --trimesh-rays rays, and its numbers are for those.
 
-Meshes are read with trimesh when it is installed, else with sahkd's own binary PLY reader.
+Meshes are read with trimesh when it is installed, else with the library's reader (PLY, OBJ).
 """
 
 import argparse
@@ -34,10 +34,10 @@ def load_mesh(path):
         mesh = trimesh.load(path, force="mesh", process=False)
         vertices, faces, reader = mesh.vertices, mesh.faces, f"trimesh {trimesh.__version__}"
     else:
-        from ._ply import read_ply
+        from ._sahkd import _read_mesh
 
-        vertices, faces = read_ply(path)
-        reader = "sahkd's PLY reader"
+        vertices, faces = _read_mesh(path)
+        reader = "sahkd's mesh reader"
     return (
         np.ascontiguousarray(vertices, dtype=np.float32),
         np.ascontiguousarray(faces, dtype=np.int32),

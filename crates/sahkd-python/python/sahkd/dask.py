@@ -34,8 +34,7 @@ except ImportError as e:  # the one place sahkd needs dask: say how to get it
         'sahkd.dask needs dask: pip install "sahkd[dask]" (or "dask[distributed]")'
     ) from e
 
-from . import _ply
-from ._sahkd import KdTree, from_bytes
+from ._sahkd import KdTree, _read_mesh, from_bytes
 from ._types import Hits
 
 __all__ = ["trace", "map_meshes", "read_mesh", "MeshFailure", "MeshError"]
@@ -230,56 +229,21 @@ def trace(tree, rays, *, kind="closest", t_min=0.0, t_max=math.inf, precision="f
 # -- many meshes ----------------------------------------------------------------------------
 
 
-def _read_obj(path):
-    """Vertices and triangles of a Wavefront OBJ file: `v` and `f` lines (polygons split into
-    fans, `i/t/n` corners, negative indices counted from the end); everything else ignored."""
-    vertices, faces = [], []
-    with open(path, "rb") as f:
-        for number, raw in enumerate(f, 1):
-            words = raw.split()
-            if not words:
-                continue
-            try:
-                if words[0] == b"v":
-                    vertices.append([float(w) for w in words[1:4]])
-                    if len(vertices[-1]) != 3:
-                        raise ValueError("a vertex needs x, y and z")
-                elif words[0] == b"f":
-                    corners = []
-                    for w in words[1:]:
-                        i = int(w.split(b"/")[0])
-                        corners.append(i - 1 if i > 0 else len(vertices) + i)
-                    if len(corners) < 3:
-                        raise ValueError("a face needs at least three corners")
-                    faces += [[corners[0], corners[k], corners[k + 1]] for k in range(1, len(corners) - 1)]
-            except ValueError as e:
-                raise ValueError(f"{path}:{number}: {e}") from None
-    if not faces:
-        raise ValueError(f"{path}: no faces in the OBJ file")
-    return np.asarray(vertices, np.float64).reshape(-1, 3), np.asarray(faces, np.int64)
-
-
 def read_mesh(path):
-    """(vertices, faces) of a mesh file: binary PLY with the package's reader, OBJ with a small
-    reader of `v`/`f` lines, anything else (ASCII PLY, STL, ...) with trimesh if installed.
-    Raises ValueError naming the path when the file cannot be read as a mesh."""
+    """(vertices, faces) of a mesh file: PLY (ASCII or binary) and OBJ with the library's reader
+    (the one the sahkd CLI uses; polygons split into fans), anything else (STL, ...) with
+    trimesh if installed. Raises ValueError naming the path when the file cannot be read as a
+    mesh."""
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
-    if ext == ".obj":
-        return _read_obj(path)
-    if ext == ".ply":
-        try:
-            return _ply.read_ply(path)
-        except ValueError as e:
-            if "install trimesh" not in str(e):
-                raise
-            first = e  # a PLY the built-in reader does not cover: try trimesh below
-    else:
-        first = ValueError(f"{path}: unknown mesh format '{ext}' (read are .ply and .obj)")
+    if ext in (".ply", ".obj"):
+        return _read_mesh(path)
     try:
         import trimesh
     except ImportError:
-        raise first from None
+        raise ValueError(
+            f"{path}: unknown mesh format '{ext}' (read are .ply and .obj; others need trimesh)"
+        ) from None
     mesh = trimesh.load(path, force="mesh", process=False)
     return np.asarray(mesh.vertices), np.asarray(mesh.faces)
 
