@@ -4,7 +4,7 @@
 
 use crate::progress::Progress;
 use anyhow::{anyhow, bail, Context, Result};
-use sahkd::tree::file::is_tree_file;
+use sahkd::saved::is_tree_file;
 use sahkd::{scenes, KdTree, LoadError, Mesh, TreeMeta};
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -5,7 +5,7 @@
 mod common;
 
 use common::{all_variants, describe, mesh_of, random_triangles, rng};
-use sahkd::tree::file::{is_tree_file, MAGIC};
+use sahkd::saved::{is_tree_file, MAGIC};
 use sahkd::{build, BuildOptions, KdTree, LoadError, Mesh, TreeMeta};
 use std::path::PathBuf;
 

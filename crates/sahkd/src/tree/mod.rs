@@ -11,12 +11,10 @@
 //! the same format. Within a leaf the references are sorted by triangle index, which makes
 //! trees from different builders comparable entry by entry.
 
-pub mod file;
 pub(crate) mod layout;
 mod stats;
-mod validate;
+pub(crate) mod validate;
 
-pub use file::{LoadError, TreeMeta};
 pub use stats::TreeStats;
 
 use crate::geometry::{Aabb, Triangle};

@@ -105,7 +105,7 @@ fn check_structure(tree: &KdTree) -> Result<(), String> {
 /// Every split strictly inside its node's box and every leaf's references sorted, on a tree
 /// whose structure is known sound (each node reached once from the root). The top levels are
 /// walked here, the subtrees below them on the worker threads.
-pub(super) fn check_splits(tree: &KdTree) -> Result<(), String> {
+pub(crate) fn check_splits(tree: &KdTree) -> Result<(), String> {
     use rayon::prelude::*;
     let mut frontier = vec![(0u32, tree.bounds)];
     while frontier.len() < 256
@@ -183,7 +183,7 @@ fn check_node(
 
 /// Completeness of the leaves for every triangle up to `sample` of them, an evenly spaced
 /// sample of `sample` above.
-pub(super) fn check_completeness(tree: &KdTree, sample: usize) -> Result<(), String> {
+pub(crate) fn check_completeness(tree: &KdTree, sample: usize) -> Result<(), String> {
     let n = tree.triangles.len();
     if n == 0 {
         return Ok(());

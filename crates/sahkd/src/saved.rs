@@ -33,10 +33,10 @@
 //! (one walk, subtrees in parallel), and completeness on a fixed sample of triangles, so
 //! opening stays linear; [`KdTree::validate`] checks it all.
 
-use super::{validate, KdTree, Node};
 use crate::builders::{BuildOptions, BuildReport};
 use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::{Aabb, Triangle, Vec3};
+use crate::tree::{validate, KdTree, Node};
 use serde_json::{json, Value};
 use std::fmt;
 use std::fs::File;
