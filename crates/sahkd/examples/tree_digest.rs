@@ -48,6 +48,24 @@ fn digest(tree: &KdTree) -> u64 {
     h.0
 }
 
+/// A library value by its serde name (`sweep`, `space-tree`, ...).
+fn named<T: serde::de::DeserializeOwned>(v: &str) -> Option<T> {
+    serde_json::from_value(serde_json::Value::String(v.to_string())).ok()
+}
+
+fn number<T: std::str::FromStr>(v: &str) -> Option<T> {
+    v.parse().ok()
+}
+
+/// The value given after `flag`, or an error saying what the flag wants.
+fn value<T>(flag: &str, v: Option<String>, parse: fn(&str) -> Option<T>, wants: &str) -> T {
+    let v = v.unwrap_or_default();
+    parse(&v).unwrap_or_else(|| {
+        eprintln!("error: {flag} needs {wants}, got {v:?}");
+        std::process::exit(2)
+    })
+}
+
 fn main() {
     let mut algorithm = Algorithm::Sweep;
     let mut threads = Some(1);
@@ -57,40 +75,10 @@ fn main() {
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
-            "--algorithm" => {
-                let name = args.next().unwrap_or_default();
-                algorithm = serde_json::from_value(serde_json::Value::String(name.clone()))
-                    .unwrap_or_else(|_| {
-                        eprintln!("error: unknown --algorithm {name}");
-                        std::process::exit(2)
-                    });
-            }
-            "--threads" => {
-                threads = match args.next().and_then(|v| v.parse().ok()) {
-                    Some(n) => Some(n),
-                    None => {
-                        eprintln!("error: --threads needs a positive number");
-                        std::process::exit(2)
-                    }
-                }
-            }
-            "--counting" => {
-                let name = args.next().unwrap_or_default();
-                counting = serde_json::from_value(serde_json::Value::String(name.clone()))
-                    .unwrap_or_else(|_| {
-                        eprintln!("error: unknown --counting {name}");
-                        std::process::exit(2)
-                    });
-            }
-            "--bins" => {
-                bins = match args.next().and_then(|v| v.parse().ok()) {
-                    Some(n) => Some(n),
-                    None => {
-                        eprintln!("error: --bins needs a number (0 for exact events)");
-                        std::process::exit(2)
-                    }
-                }
-            }
+            "--algorithm" => algorithm = value(&a, args.next(), named, "a builder's name"),
+            "--counting" => counting = value(&a, args.next(), named, "space-tree or scan"),
+            "--threads" => threads = Some(value(&a, args.next(), number, "a positive number")),
+            "--bins" => bins = Some(value(&a, args.next(), number, "a number (0: exact)")),
             _ => names.push(a),
         }
     }
