@@ -19,7 +19,7 @@
 //! proportion to their primitives. The root can never be an empty-space cut, since the
 //! scene box is the triangles' own box.
 
-use super::choice::Split;
+use super::choice::{split_or_leaf, Split};
 use super::stitch::{self, Piece};
 use super::sweep::{self, Subtree};
 use super::{BuildOptions, BuiltTree, LevelReport, Primitives};
@@ -259,36 +259,38 @@ fn place_level(
     next
 }
 
-/// The split of a large node, or `None` when it must be a leaf.
+/// The split of a large node, or `None` when it must be a leaf: the builders' rules around
+/// this builder's search, [`cut`].
 fn choose_split(node: &Pending, cost: &CostModel, max_depth: u32) -> Option<Split> {
     let n = node.items.len() as u32;
-    if n <= cost.leaf_size || node.depth >= max_depth {
+    split_or_leaf(n, node.depth, max_depth, cost, || cut(node, n, cost))
+}
+
+/// The large node's cut: of empty space where there is enough of it, else at the spatial
+/// median of its longest axis (`None` where that median is not strictly inside the box).
+fn cut(node: &Pending, n: u32, cost: &CostModel) -> Option<Split> {
+    let bounds = &node.bounds;
+    if let Some(cut) = empty_space_cut(bounds, &node.extent, n, cost) {
+        return Some(cut);
+    }
+    let axis = bounds.longest_axis();
+    // Halves first, so that coordinates near the largest float do not overflow.
+    let pos = bounds.lo[axis] * 0.5 + bounds.hi[axis] * 0.5 + 0.0;
+    if !(pos > bounds.lo[axis] && pos < bounds.hi[axis]) {
         return None;
     }
-    let bounds = &node.bounds;
-    let split = if let Some(cut) = empty_space_cut(bounds, &node.extent, n, cost) {
-        cut
-    } else {
-        let axis = bounds.longest_axis();
-        // Halves first, so that coordinates near the largest float do not overflow.
-        let pos = bounds.lo[axis] * 0.5 + bounds.hi[axis] * 0.5 + 0.0;
-        if !(pos > bounds.lo[axis] && pos < bounds.hi[axis]) {
-            return None;
-        }
-        let (below, above, planar) = count_at(&node.items, axis, pos);
-        let cost_left = cost.split_cost(bounds, axis, pos, below + planar, above);
-        let cost_right = cost.split_cost(bounds, axis, pos, below, above + planar);
-        let planar_left = cost_left <= cost_right;
-        Split {
-            axis,
-            pos,
-            cost: cost_left.min(cost_right),
-            planar_left,
-            n_left: below + if planar_left { planar } else { 0 },
-            n_right: above + if planar_left { 0 } else { planar },
-        }
-    };
-    (split.cost < cost.leaf_cost(n)).then_some(split)
+    let (below, above, planar) = count_at(&node.items, axis, pos);
+    let cost_left = cost.split_cost(bounds, axis, pos, below + planar, above);
+    let cost_right = cost.split_cost(bounds, axis, pos, below, above + planar);
+    let planar_left = cost_left <= cost_right;
+    Some(Split {
+        axis,
+        pos,
+        cost: cost_left.min(cost_right),
+        planar_left,
+        n_left: below + if planar_left { planar } else { 0 },
+        n_right: above + if planar_left { 0 } else { planar },
+    })
 }
 
 /// The cut of the largest empty space beyond `EMPTY_SPACE_RATIO` of the node's extent, at

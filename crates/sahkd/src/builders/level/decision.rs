@@ -62,7 +62,7 @@ pub(super) fn decide<E: ListEntry>(
                 best = min_of(best, local);
             }
             let (c, axis) = best?;
-            (c.cost < ctx.cost.leaf_cost(level.refs(k))).then(|| c.split(axis))
+            Some(c.split(axis)).filter(|s| s.pays(level.refs(k), &ctx.cost))
         })
         .collect_into_vec(splits);
 }

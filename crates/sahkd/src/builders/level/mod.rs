@@ -44,7 +44,7 @@ mod space_tree;
 
 pub(crate) use handoff::Frontier;
 
-use super::choice::Split;
+use super::choice::{searched, Split};
 use super::{Algorithm, Axes, BuildOptions, BuiltTree, Counting, LevelReport, Primitives};
 use crate::cost::CostModel;
 use crate::geometry::{Aabb, Triangle};
@@ -310,13 +310,12 @@ fn axes_in_use<E: ListEntry>(level: &Level<E>, ctx: &Context, uses: &mut Vec<u8>
         .into_par_iter()
         .with_min_len(1024)
         .map(|k| {
-            if level.refs(k) <= ctx.cost.leaf_size || level.depth >= ctx.max_depth {
-                0
-            } else {
-                match ctx.axes {
-                    Axes::Longest => 1 << level.boxes[k].longest_axis(),
-                    Axes::All => 7,
-                }
+            if !searched(level.refs(k), level.depth, ctx.max_depth, &ctx.cost) {
+                return 0;
+            }
+            match ctx.axes {
+                Axes::Longest => 1 << level.boxes[k].longest_axis(),
+                Axes::All => 7,
             }
         })
         .collect_into_vec(uses);

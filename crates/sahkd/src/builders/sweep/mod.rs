@@ -20,6 +20,7 @@ mod search;
 
 pub(crate) use events::Event;
 
+use super::choice::split_or_leaf;
 use super::{BuildOptions, BuiltTree, Primitives};
 use crate::geometry::{Aabb, Triangle};
 use crate::tree::Node;
@@ -159,9 +160,7 @@ fn grow(
         events: [0; 3],
     }];
     while let Some(node) = stack.pop() {
-        let split = if node.n <= cost.leaf_size || node.depth >= max_depth {
-            None
-        } else {
+        let split = split_or_leaf(node.n, node.depth, max_depth, cost, || {
             search::best_split(
                 work.events(&node.events),
                 &node.bounds,
@@ -169,14 +168,13 @@ fn grow(
                 options.axes,
                 cost,
             )
-            .filter(|s| s.cost < cost.leaf_cost(node.n))
-            .filter(|s| {
-                let extra = (s.n_left + s.n_right - node.n) as usize;
-                let fits = references + extra <= budget && claims.take(extra, budget);
-                budget_bound |= !fits;
-                fits
-            })
-        };
+        })
+        .filter(|s| {
+            let extra = (s.refs() - node.n) as usize;
+            let fits = references + extra <= budget && claims.take(extra, budget);
+            budget_bound |= !fits;
+            fits
+        });
         let Some(split) = split else {
             let first = refs.len() as u32;
             work.collect_prims(&node.events, refs);
