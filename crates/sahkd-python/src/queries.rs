@@ -1,8 +1,8 @@
 //! The queries both classes answer, defined once: KdTree's on its tree and Scene's on its
 //! scene tree ([`Target`]), rays in either precision and points. [`methods!`] writes both
 //! classes' `#[pymethods]` (pyo3 cannot make those generic): each query is a thin method
-//! that reads its arguments, asks the class for its target and pool (`target()`), and calls
-//! one generic function here.
+//! that asks the class for its target and pool (`target()`) and calls one function with
+//! them and its arguments: a generic one here for what both classes answer.
 
 use numpy::PyArray1;
 use pyo3::prelude::*;

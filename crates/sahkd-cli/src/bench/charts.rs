@@ -240,16 +240,34 @@ fn draw_table1(buffer: &mut [u8], path: &Path, results: &Results) -> Result<()> 
 }
 
 /// Fig. 1: P_n = (T_n - T_sort) / (T_1 - T_sort) for n = 1 .. 7 on the largest scene.
+/// What a figure's axes say, and the room for its y labels.
+struct Axes {
+    x_desc: &'static str,
+    y_desc: &'static str,
+    y_area: u32,
+}
+
+const FIG1: Axes = Axes {
+    x_desc: "levels built, n (tree depth limited to n)",
+    y_desc: "P_n = median(T_n - T_sort) / median(T_1 - T_sort)",
+    y_area: 90,
+};
+
+const FIG2: Axes = Axes {
+    x_desc: "worker threads",
+    y_desc: "speed-up (median time at base / median time at n threads)",
+    y_area: 80,
+};
+
 /// A figure's chart over its whole picture: a bold caption, linear axes over the ranges
-/// `x` and `y` with `y_area` pixels for the y labels, whole-number ticks along x, and the
-/// axes' descriptions.
+/// `x` and `y` described by `axes`, and `x_labels` whole-number ticks along x.
 fn figure<'a, 'b>(
     path: &Path,
     root: &'a DrawingArea<BitMapBackend<'b>, Shift>,
     caption: String,
-    y_area: u32,
+    axes: &Axes,
     (x, y): (Range<f64>, Range<f64>),
-    (x_labels, x_desc, y_desc): (usize, &str, &str),
+    x_labels: usize,
 ) -> Result<ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>> {
     let mut chart = draw!(
         path,
@@ -257,7 +275,7 @@ fn figure<'a, 'b>(
             .caption(caption, (FONT, 28).into_font().style(FontStyle::Bold))
             .margin(20)
             .x_label_area_size(55)
-            .y_label_area_size(y_area)
+            .y_label_area_size(axes.y_area)
             .build_cartesian_2d(x, y)
     );
     draw!(
@@ -266,8 +284,8 @@ fn figure<'a, 'b>(
             .configure_mesh()
             .x_labels(x_labels)
             .x_label_formatter(&|x| format!("{x:.0}"))
-            .x_desc(x_desc)
-            .y_desc(y_desc)
+            .x_desc(axes.x_desc)
+            .y_desc(axes.y_desc)
             .label_style((FONT, 18))
             .axis_desc_style((FONT, 20))
             .draw()
@@ -288,18 +306,11 @@ fn draw_fig1(buffer: &mut [u8], path: &Path, results: &Results) -> Result<()> {
         .filter(|p| p.is_finite())
         .fold(1.0f64, f64::max)
         * 1.1;
-    let mut chart = figure(
-        path,
-        &root,
-        format!("Fig. 1: time to build the first n levels, {scene}, relative to one level"),
-        90,
-        (0.5f64..levels + 0.5, 0f64..top),
-        (
-            results.settings.fig1_levels as usize,
-            "levels built, n (tree depth limited to n)",
-            "P_n = median(T_n - T_sort) / median(T_1 - T_sort)",
-        ),
-    )?;
+    let caption =
+        format!("Fig. 1: time to build the first n levels, {scene}, relative to one level");
+    let ranges = (0.5f64..levels + 0.5, 0f64..top);
+    let ticks = results.settings.fig1_levels as usize;
+    let mut chart = figure(path, &root, caption, &FIG1, ranges, ticks)?;
     for curve in &results.levels {
         let c = colour(if curve.algorithm == "level" { 3 } else { 1 });
         let points: Vec<(f64, f64)> = curve
@@ -364,17 +375,15 @@ fn draw_fig2(buffer: &mut [u8], path: &Path, results: &Results) -> Result<()> {
     let root = BitMapBackend::with_buffer(buffer, SIZE).into_drawing_area();
     draw!(path, root.fill(&WHITE));
     let plural = if base == 1 { "" } else { "s" };
+    let caption = format!("Fig. 2: build speed-up against {base} thread{plural}");
+    let ranges = (0f64..max_threads + 0.5, 0f64..top);
     let mut chart = figure(
         path,
         &root,
-        format!("Fig. 2: build speed-up against {base} thread{plural}"),
-        80,
-        (0f64..max_threads + 0.5, 0f64..top),
-        (
-            max_threads as usize + 1,
-            "worker threads",
-            "speed-up (median time at base / median time at n threads)",
-        ),
+        caption,
+        &FIG2,
+        ranges,
+        max_threads as usize + 1,
     )?;
     // Threads beyond the cores share them: shade that part and say so.
     if cores < max_threads + 0.5 {
