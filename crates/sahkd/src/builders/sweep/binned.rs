@@ -18,6 +18,7 @@
 
 use super::search::{best_split_of_boxes, priced, Split};
 use super::{build_subtree, Subtree};
+use crate::builders::choice::split_or_leaf;
 use crate::builders::options::BINNED_REFS_PER_BIN;
 use crate::builders::stitch::{self, Piece};
 use crate::builders::{Axes, BuildOptions, BuiltTree, Primitives};
@@ -171,32 +172,30 @@ fn grow(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
     let start = Instant::now();
     let cost = &ctx.options.cost;
     let mut tally = Tally::default();
-    let split = if n as u32 <= cost.leaf_size || node.depth >= ctx.max_depth {
-        None
-    } else if binned {
-        best_split(
-            &node.boxes,
-            &node.bounds,
-            ctx.options.axes,
-            ctx.options.resolved_bins(),
-            cost,
-            ctx.parallel,
-        )
-    } else {
-        best_split_of_boxes(&node.boxes, &node.bounds, ctx.options.axes, cost)
-    };
-    let split = split
-        .filter(|s| s.cost < cost.leaf_cost(n as u32))
-        .filter(|s| {
-            let extra = (s.n_left + s.n_right) as usize - n;
-            let fits = if ctx.parallel {
-                total.fetch_add(extra, Ordering::Relaxed) + extra <= ctx.budget
-            } else {
-                total.load(Ordering::Relaxed) + extra <= ctx.budget
-            };
-            tally.budget_bound |= !fits;
-            fits
-        });
+    let split = split_or_leaf(n as u32, node.depth, ctx.max_depth, cost, || {
+        if binned {
+            best_split(
+                &node.boxes,
+                &node.bounds,
+                ctx.options.axes,
+                ctx.options.resolved_bins(),
+                cost,
+                ctx.parallel,
+            )
+        } else {
+            best_split_of_boxes(&node.boxes, &node.bounds, ctx.options.axes, cost)
+        }
+    });
+    let split = split.filter(|s| {
+        let extra = (s.n_left + s.n_right) as usize - n;
+        let fits = if ctx.parallel {
+            total.fetch_add(extra, Ordering::Relaxed) + extra <= ctx.budget
+        } else {
+            total.load(Ordering::Relaxed) + extra <= ctx.budget
+        };
+        tally.budget_bound |= !fits;
+        fits
+    });
     let Some(split) = split else {
         tally.binned_ms = start.elapsed().as_secs_f64() * 1e3;
         return (Top::Leaf(node.ids), tally);
