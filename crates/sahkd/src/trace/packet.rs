@@ -27,8 +27,21 @@ use crate::geometry::Vec3;
 use crate::tree::KdTree;
 use std::mem::MaybeUninit;
 
-/// Rays per packet in the batch calls.
+/// Rays per packet in the batch calls on the x86-64 baseline (SSE2).
 pub(super) const WIDTH: usize = 4;
+
+/// Rays per packet where the CPU has AVX2: the batch calls then run an instance of the packet
+/// walk compiled for AVX2, whose lane loops fill 8-float registers.
+#[cfg(target_arch = "x86_64")]
+const WIDE: usize = 8;
+
+/// True when this CPU runs the AVX2 instance ([`WIDE`] lanes). The standard library caches
+/// the detection, so asking per group costs a load.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn has_avx2() -> bool {
+    std::is_x86_feature_detected!("avx2")
+}
 
 /// Rays per group: the batch calls hand out groups of neighbouring rays, and a group's rays
 /// are sorted by direction octant before they are cut into packets, so that rays of
@@ -83,6 +96,20 @@ fn lt<const N: usize>(a: &[f32; N], b: &[f32; N]) -> u32 {
             )) as u32
         };
     }
+    #[cfg(target_arch = "x86_64")]
+    if N == 8 {
+        use std::arch::x86_64::{_mm_cmplt_ps, _mm_loadu_ps, _mm_movemask_ps};
+        // SAFETY: SSE is part of x86_64, and both arrays hold 8 floats: two halves of 4.
+        return unsafe {
+            let half = |k: usize| {
+                _mm_movemask_ps(_mm_cmplt_ps(
+                    _mm_loadu_ps(a.as_ptr().add(k)),
+                    _mm_loadu_ps(b.as_ptr().add(k)),
+                )) as u32
+            };
+            half(0) | half(4) << 4
+        };
+    }
     mask_of::<N>(|i| a[i] < b[i])
 }
 
@@ -98,6 +125,20 @@ fn le<const N: usize>(a: &[f32; N], b: &[f32; N]) -> u32 {
                 _mm_loadu_ps(a.as_ptr()),
                 _mm_loadu_ps(b.as_ptr()),
             )) as u32
+        };
+    }
+    #[cfg(target_arch = "x86_64")]
+    if N == 8 {
+        use std::arch::x86_64::{_mm_cmple_ps, _mm_loadu_ps, _mm_movemask_ps};
+        // SAFETY: SSE is part of x86_64, and both arrays hold 8 floats: two halves of 4.
+        return unsafe {
+            let half = |k: usize| {
+                _mm_movemask_ps(_mm_cmple_ps(
+                    _mm_loadu_ps(a.as_ptr().add(k)),
+                    _mm_loadu_ps(b.as_ptr().add(k)),
+                )) as u32
+            };
+            half(0) | half(4) << 4
         };
     }
     mask_of::<N>(|i| a[i] <= b[i])
@@ -244,15 +285,15 @@ impl KdTree {
 
     /// Answers of a group of at most [`GROUP`] rays into `out`: the rays are ordered by the
     /// signs of their directions (stable, so coherent rays keep their neighbours), each run of
-    /// one octant is cut into packets of [`WIDTH`] walked by `packet`, and what is left of a
+    /// one octant is cut into packets of `W` rays walked by `packet`, and what is left of a
     /// run is walked one ray at a time by `single`. Every ray gets its single-ray answer
     /// whichever way it is walked, so the grouping changes nothing in the results.
     #[inline(always)]
-    fn trace_group<T: Copy>(
+    fn trace_group<const W: usize, T: Copy>(
         &self,
         rays: &[Ray],
         out: &mut [T],
-        mut packet: impl FnMut(&[Ray; WIDTH]) -> [T; WIDTH],
+        mut packet: impl FnMut(&[Ray; W]) -> [T; W],
         mut single: impl FnMut(&Ray) -> T,
     ) {
         debug_assert!(rays.len() <= GROUP && rays.len() == out.len());
@@ -273,7 +314,7 @@ impl KdTree {
         }
         for k in 0..8 {
             let run = &order[runs[k]..runs[k + 1]];
-            let mut packets = run.chunks_exact(WIDTH);
+            let mut packets = run.chunks_exact(W);
             for lanes in &mut packets {
                 let answers = packet(&std::array::from_fn(|j| rays[lanes[j] as usize]));
                 for (j, &i) in lanes.iter().enumerate() {
@@ -288,11 +329,48 @@ impl KdTree {
 
     /// Closest hits of a group of at most [`GROUP`] rays into `out`.
     pub(super) fn closest_group(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        self.trace_group(
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2() {
+            // SAFETY: the CPU has AVX2 (checked just above).
+            return unsafe { self.closest_group_avx2(rays, out) };
+        }
+        self.closest_group_of::<WIDTH>(rays, out);
+    }
+
+    /// Any-hit answers of a group of at most [`GROUP`] rays into `out`.
+    pub(super) fn any_group(&self, rays: &[Ray], out: &mut [bool]) {
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2() {
+            // SAFETY: the CPU has AVX2 (checked just above).
+            return unsafe { self.any_group_avx2(rays, out) };
+        }
+        self.any_group_of::<WIDTH>(rays, out);
+    }
+
+    /// [`Self::closest_group`] with packets of [`WIDE`] rays, compiled for AVX2. Only AVX2 is
+    /// enabled, not FMA: the walk's products and sums stay separate operations, as in the
+    /// single-ray walk, so the answers keep their bits.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn closest_group_avx2(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        self.closest_group_of::<WIDE>(rays, out);
+    }
+
+    /// [`Self::any_group`] with packets of [`WIDE`] rays, compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn any_group_avx2(&self, rays: &[Ray], out: &mut [bool]) {
+        self.any_group_of::<WIDE>(rays, out);
+    }
+
+    #[inline(always)]
+    fn closest_group_of<const W: usize>(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        self.trace_group::<W, _>(
             rays,
             out,
+            #[inline(always)]
             |packet| {
-                let mut closest: [Closest; WIDTH] =
+                let mut closest: [Closest; W] =
                     std::array::from_fn(|i| self.closest_of(&packet[i]));
                 self.walk_packet(packet, |i, hit, limit| {
                     closest[i].offer(hit, limit);
@@ -304,13 +382,14 @@ impl KdTree {
         );
     }
 
-    /// Any-hit answers of a group of at most [`GROUP`] rays into `out`.
-    pub(super) fn any_group(&self, rays: &[Ray], out: &mut [bool]) {
-        self.trace_group(
+    #[inline(always)]
+    fn any_group_of<const W: usize>(&self, rays: &[Ray], out: &mut [bool]) {
+        self.trace_group::<W, _>(
             rays,
             out,
+            #[inline(always)]
             |packet| {
-                let mut found = [false; WIDTH];
+                let mut found = [false; W];
                 self.walk_packet(packet, |i, _, _| {
                     found[i] = true;
                     true
