@@ -400,3 +400,86 @@ impl KdTree {
         );
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{build_triangles, BuildOptions};
+    use rand::rngs::StdRng;
+    use rand::{Rng, SeedableRng};
+
+    /// Packets of every width the batch calls may pick (4 on the x86-64 baseline, 8 where the
+    /// CPU has AVX2) answer each ray as its single-ray walk does, bit for bit: coherent rays
+    /// from one eye, scattered rays from points in the scene (most octants mixed in a
+    /// group), and short rays whose limits end inside the scene.
+    #[test]
+    fn packets_of_each_width_answer_as_single_rays() {
+        let mut rng = StdRng::seed_from_u64(8);
+        let mut point = |r: f32| Vec3(std::array::from_fn(|_| rng.random_range(-r..r)));
+        let tris: Vec<_> = (0..2000)
+            .map(|_| {
+                let c = point(1.0);
+                [c + point(0.15), c + point(0.15), c + point(0.15)]
+            })
+            .collect();
+        let tree = build_triangles(tris, &BuildOptions::default())
+            .unwrap()
+            .tree;
+        let mut rays: Vec<Ray> = (0..GROUP * 3)
+            .map(|i| {
+                let target = point(1.0);
+                let eye = Vec3::new(0.3, 0.2, 3.0);
+                match i % 3 {
+                    0 => Ray::new(eye, target - eye),
+                    1 => Ray::new(point(1.0), point(1.0)),
+                    _ => {
+                        let mut r = Ray::new(point(1.0), point(1.0));
+                        r.t_max = 0.3;
+                        r
+                    }
+                }
+            })
+            .collect();
+        rays.sort_by_key(|r| octant(r));
+        let closest: Vec<Option<Hit>> = rays.iter().map(|r| tree.intersect(r)).collect();
+        let any: Vec<bool> = rays.iter().map(|r| tree.occluded(r)).collect();
+        assert!(closest.iter().filter(|h| h.is_some()).count() > rays.len() / 4);
+        assert!(any.iter().any(|&b| !b));
+        let check = |width: usize, got: (Vec<Option<Hit>>, Vec<bool>)| {
+            assert_eq!(got.0, closest, "closest hits, packets of {width}");
+            assert_eq!(got.1, any, "any hits, packets of {width}");
+        };
+        let run = |closest_of: &dyn Fn(&[Ray], &mut [Option<Hit>]),
+                   any_of: &dyn Fn(&[Ray], &mut [bool])| {
+            let mut c = vec![None; rays.len()];
+            let mut a = vec![false; rays.len()];
+            for (rays, (c, a)) in rays
+                .chunks(GROUP)
+                .zip(c.chunks_mut(GROUP).zip(a.chunks_mut(GROUP)))
+            {
+                closest_of(rays, c);
+                any_of(rays, a);
+            }
+            (c, a)
+        };
+        check(
+            4,
+            run(&|r, o| tree.closest_group_of::<4>(r, o), &|r, o| {
+                tree.any_group_of::<4>(r, o)
+            }),
+        );
+        check(
+            8,
+            run(&|r, o| tree.closest_group_of::<8>(r, o), &|r, o| {
+                tree.any_group_of::<8>(r, o)
+            }),
+        );
+        // What the batch calls run on this CPU.
+        check(
+            0,
+            run(&|r, o| tree.closest_group(r, o), &|r, o| {
+                tree.any_group(r, o)
+            }),
+        );
+    }
+}
