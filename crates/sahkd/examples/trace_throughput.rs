@@ -4,10 +4,10 @@
 //! cargo run --release -p sahkd --example trace_throughput -- MESH [--camera front|near|auto]
 //!     [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR]
 //!     [--sets primary,shadow,ao,bounce] [--no-count] [--preset NAME] [--traversal-cost X]
-//!     [--empty-bonus X]
+//!     [--empty-bonus X] [--bins N] [--clip on|off]
 //! ```
 //! The tree is built with the default options (or the preset named), with the cost model's
-//! traversal cost and empty-space bonus given after it.
+//! traversal cost and empty-space bonus, the bins and the clipping given after it.
 //! Primary rays (closest hit): one per pixel centre of a size x size picture. `front` is the
 //! fixed benchmark camera (bounding-box centre + (0, 0, 2 x diagonal) looking at the centre,
 //! up +y, 45 degree vertical field of view; most rays miss), `near` the same at 0.75 diagonals,
@@ -91,6 +91,20 @@ fn parse_args() -> Result<Args, String> {
                     .parse()
                     .map_err(|e| format!("--traversal-cost: {e}"))?
             }
+            "--bins" => {
+                args.options.bins = Some(
+                    value("--bins")?
+                        .parse()
+                        .map_err(|e| format!("--bins: {e}"))?,
+                )
+            }
+            "--clip" => {
+                args.options.clip = match value("--clip")?.as_str() {
+                    "on" => true,
+                    "off" => false,
+                    v => return Err(format!("--clip: expected on or off, got {v}")),
+                }
+            }
             "--empty-bonus" => {
                 args.options.cost.empty_bonus = value("--empty-bonus")?
                     .parse()
@@ -101,7 +115,7 @@ fn parse_args() -> Result<Args, String> {
         }
     }
     if args.mesh.is_empty() {
-        return Err("usage: trace_throughput MESH [--camera front|near|auto] [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR] [--sets primary,shadow,ao,bounce] [--no-count] [--preset NAME] [--traversal-cost X] [--empty-bonus X]".into());
+        return Err("usage: trace_throughput MESH [--camera front|near|auto] [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR] [--sets primary,shadow,ao,bounce] [--no-count] [--preset NAME] [--traversal-cost X] [--empty-bonus X] [--bins N] [--clip on|off]".into());
     }
     if args.threads.contains(&0) || args.repeat == 0 || args.size == 0 {
         return Err("--threads, --repeat and --size must be at least 1".into());

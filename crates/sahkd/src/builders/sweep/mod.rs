@@ -260,3 +260,52 @@ impl<'a> Claims<'a> {
         }
     }
 }
+
+/// Random boxes for the searches' tests, checked against counting every box.
+#[cfg(test)]
+mod testing {
+    use crate::geometry::{Aabb, Vec3};
+
+    /// A seeded linear congruential generator.
+    pub(super) struct Lcg(pub u64);
+
+    impl Lcg {
+        /// A number in `0..k`.
+        pub(super) fn below(&mut self, k: u64) -> u64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 33) % k
+        }
+    }
+
+    /// `n` boxes with corners on a grid of `step` (so that ends coincide and flat boxes lie
+    /// in each other's planes): each axis starts at one of `cells` grid points and is flat one
+    /// time in three, else up to `widths - 1` steps wide, its end kept at most `cap`.
+    pub(super) fn grid_boxes(
+        rng: &mut Lcg,
+        n: usize,
+        cells: u64,
+        widths: u64,
+        step: f32,
+        cap: f32,
+    ) -> Vec<Aabb> {
+        (0..n)
+            .map(|_| {
+                let (mut lo, mut hi) = (Vec3::splat(0.0), Vec3::splat(0.0));
+                for a in 0..3 {
+                    let x = rng.below(cells) as f32 * step;
+                    let w = if rng.below(3) == 0 {
+                        0.0
+                    } else {
+                        rng.below(widths) as f32 * step
+                    };
+                    lo[a] = x;
+                    hi[a] = (x + w).min(cap);
+                }
+                Aabb::new(lo, hi)
+            })
+            .collect()
+    }
+}

@@ -38,18 +38,20 @@ pub(super) fn best_split(
 
 /// The split [`best_split`] finds for a node whose references have `boxes`, from events made
 /// and sorted here for the axes it prices: the sweep's choice for a node that is not on a
-/// sweep's stack (the binned builder's nodes below its threshold, built at once).
+/// sweep's stack (the binned builder's nodes below its threshold, built at once). `lists`
+/// and `scratch` are buffers, emptied first.
 pub(super) fn best_split_of_boxes(
     boxes: &[Aabb],
     node: &Aabb,
     axes: Axes,
     cost: &CostModel,
+    lists: &mut [Vec<Event>; 3],
+    scratch: &mut Vec<Event>,
 ) -> Option<Split> {
-    let mut lists: [Vec<Event>; 3] = Default::default();
-    let mut scratch = Vec::new();
     for (axis, list) in lists.iter_mut().enumerate() {
+        list.clear();
         if axes == Axes::All || axis == node.longest_axis() {
-            events::sorted_of_boxes(list, axis, boxes, &mut scratch);
+            events::sorted_of_boxes(list, axis, boxes, scratch);
         }
     }
     let events = [&lists[0][..], &lists[1][..], &lists[2][..]];
@@ -151,6 +153,7 @@ pub(super) fn priced(
 #[cfg(test)]
 mod tests {
     use super::super::events::{push_box, sort_prim_ordered};
+    use super::super::testing::{grid_boxes, Lcg};
     use super::*;
     use crate::geometry::Vec3;
 
@@ -202,33 +205,12 @@ mod tests {
 
     #[test]
     fn sweep_matches_brute_force_search() {
-        let mut seed = 99u64;
-        let mut rnd = move |k: u64| {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 33) % k
-        };
+        let mut rng = Lcg(99);
         let cost = CostModel::default();
         for round in 0..300 {
-            let n = 1 + rnd(60) as usize;
+            let n = 1 + rng.below(60) as usize;
             // Coordinates on a coarse grid, so that coincident and planar events abound.
-            let mut boxes = Vec::new();
-            for _ in 0..n {
-                let mut lo = Vec3::splat(0.0);
-                let mut hi = Vec3::splat(0.0);
-                for a in 0..3 {
-                    let x = rnd(9) as f32 * 0.5;
-                    let w = if rnd(3) == 0 {
-                        0.0
-                    } else {
-                        rnd(5) as f32 * 0.5
-                    };
-                    lo[a] = x;
-                    hi[a] = x + w;
-                }
-                boxes.push(Aabb::new(lo, hi));
-            }
+            let boxes = grid_boxes(&mut rng, n, 9, 5, 0.5, f32::INFINITY);
             let bounds = boxes.iter().fold(Aabb::EMPTY, |b, &x| b.union(x));
             // Sometimes a node box tighter than the primitives, as with clip off below the root.
             let node = if round % 3 == 0 {
