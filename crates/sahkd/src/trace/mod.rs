@@ -28,12 +28,11 @@ mod triangle;
 use crate::tree::layout;
 
 pub use precise::{Hit64, Ray64};
-use triangle::Real;
 pub use triangle::{ShearedRay, TriangleHit};
 
 use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::{Aabb, Triangle, Vec3};
-use crate::tree::{KdTree, Node};
+use crate::tree::KdTree;
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
 
@@ -348,34 +347,21 @@ impl std::ops::AddAssign for TraceStats {
 
 /// Pending far child: node index and the ray interval inside it.
 #[derive(Clone, Copy)]
-struct Pending<F> {
+struct Pending {
     node: u32,
-    t0: F,
-    t1: F,
+    t0: f32,
+    t1: f32,
 }
 
 /// Slab test against the (scaled) tree's box; a zero direction component checks the origin
 /// instead.
 #[inline(always)]
 fn clip_to_box(b: &Aabb, ray: &Ray, inv: &Vec3) -> Option<(f32, f32)> {
-    let range = (ray.t_min, ray.t_max);
-    clip(b.lo.0, b.hi.0, ray.origin.0, inv.0, range)
-}
-
-/// [`clip_to_box`] in either precision: the part of `range` in which the ray with `origin`
-/// and inverse direction `inv` is inside the box `lo..hi`.
-#[inline(always)]
-fn clip<F: Real>(
-    lo: [F; 3],
-    hi: [F; 3],
-    origin: [F; 3],
-    inv: [F; 3],
-    (mut t0, mut t1): (F, F),
-) -> Option<(F, F)> {
+    let (mut t0, mut t1) = (ray.t_min, ray.t_max);
     for a in 0..3 {
         if inv[a].is_finite() {
-            let near = (lo[a] - origin[a]) * inv[a];
-            let far = (hi[a] - origin[a]) * inv[a];
+            let near = (b.lo[a] - ray.origin[a]) * inv[a];
+            let far = (b.hi[a] - ray.origin[a]) * inv[a];
             let (near, far) = if near <= far {
                 (near, far)
             } else {
@@ -383,81 +369,11 @@ fn clip<F: Real>(
             };
             t0 = t0.max(near);
             t1 = t1.min(far);
-        } else if !(origin[a] >= lo[a] && origin[a] <= hi[a]) {
+        } else if !(ray.origin[a] >= b.lo[a] && ray.origin[a] <= b.hi[a]) {
             return None;
         }
     }
     (t0 <= t1).then_some((t0, t1))
-}
-
-/// The front-to-back node walk of the single-ray queries, in either precision (the float32
-/// walk over the trace layout's nodes, `precise`'s f64 walk over the tree's own): from the
-/// root of `nodes`, for the ray at `origin` with inverse direction `inv` over `interval`
-/// (already clipped to the box). `leaf(node, limit, counters)` tests a leaf's triangles
-/// against `[t_min, *limit]`; it may lower `limit` (nodes that start beyond it are skipped)
-/// and returns true to end the walk.
-#[inline(always)]
-fn walk_nodes<F: Real, C: TraceCounters>(
-    nodes: &[Node],
-    origin: [F; 3],
-    inv: [F; 3],
-    (mut t0, mut t1): (F, F),
-    mut limit: F,
-    counters: &mut C,
-    mut leaf: impl FnMut(&Node, &mut F, &mut C) -> bool,
-) {
-    // The child on the ray's incoming side of a plane is "near". With a zero direction
-    // component `inv` is infinite (of the direction's sign) and the plane distance below is
-    // +-inf, which routes the ray by its origin, or NaN when the origin lies in the plane.
-    let near_is_right = [0, 1, 2].map(|a| inv[a].is_sign_negative() as u32);
-    // Only entries below `top` are read, and each was written first.
-    let mut stack = [MaybeUninit::<Pending<F>>::uninit(); MAX_DEPTH_CAP as usize + 4];
-    let mut top = 0usize;
-    let mut node_index = 0u32;
-    loop {
-        // A node that starts beyond the limit is skipped, not a reason to stop: a ray
-        // lying in a split plane pushes a sibling over its whole interval, so the stack
-        // is not always ordered by entry distance.
-        if t0 <= limit {
-            counters.node();
-            let node = &nodes[node_index as usize];
-            if !node.is_leaf() {
-                let axis = node.axis();
-                let left = node.left();
-                let t_plane = (F::of(node.split()) - origin[axis]) * inv[axis];
-                let near = left + near_is_right[axis];
-                let far = left + 1 - near_is_right[axis];
-                if t_plane > t1 {
-                    node_index = near;
-                } else if t_plane < t0 {
-                    node_index = far;
-                } else {
-                    // Both sides; a ray running inside the plane (NaN) keeps its interval
-                    // for both, since either may hold what it touches.
-                    let nan = t_plane.is_nan();
-                    stack[top] = MaybeUninit::new(Pending {
-                        node: far,
-                        t0: if nan { t0 } else { t_plane },
-                        t1,
-                    });
-                    top += 1;
-                    node_index = near;
-                    t1 = if nan { t1 } else { t_plane };
-                }
-                continue;
-            }
-            if leaf(node, &mut limit, counters) {
-                return;
-            }
-        }
-        if top == 0 {
-            return;
-        }
-        top -= 1;
-        // SAFETY: entries below `top` were all written by a push.
-        let p = unsafe { stack[top].assume_init() };
-        (node_index, t0, t1) = (p.node, p.t0, p.t1);
-    }
 }
 
 impl KdTree {
@@ -613,29 +529,69 @@ impl KdTree {
         }
         let d = ray.direction;
         let inv = Vec3([1.0 / d[0], 1.0 / d[1], 1.0 / d[2]]);
-        let Some(interval) = clip_to_box(&layout.bounds, ray, &inv) else {
+        let Some((mut t0, mut t1)) = clip_to_box(&layout.bounds, ray, &inv) else {
             return;
         };
+        // The child on the ray's incoming side of a plane is "near". With a zero direction
+        // component `inv` is infinite and the plane distance below is +-inf, which routes the
+        // ray by its origin, or NaN when the origin lies in the plane.
+        let near_is_right = [0, 1, 2].map(|a| d[a].is_sign_negative() as u32);
         let mut sheared: Option<ShearedRay> = None;
-        let limit = ray.t_max;
-        walk_nodes(
-            nodes,
-            ray.origin.0,
-            inv.0,
-            interval,
-            limit,
-            counters,
-            |node, limit, counters| {
-                let words = layout.leaf_words(node);
-                if words.is_empty() {
-                    return false;
+        // Only entries below `top` are read, and each was written first.
+        let mut stack = [MaybeUninit::<Pending>::uninit(); MAX_DEPTH_CAP as usize + 4];
+        let mut top = 0usize;
+        let mut node_index = 0u32;
+        let mut limit = ray.t_max;
+        loop {
+            // A node that starts beyond the limit is skipped, not a reason to stop: a ray
+            // lying in a split plane pushes a sibling over its whole interval, so the stack
+            // is not always ordered by entry distance.
+            if t0 <= limit {
+                counters.node();
+                let node = &nodes[node_index as usize];
+                if !node.is_leaf() {
+                    let axis = node.axis();
+                    let left = node.left();
+                    let t_plane = (node.split() - ray.origin[axis]) * inv[axis];
+                    let near = left + near_is_right[axis];
+                    let far = left + 1 - near_is_right[axis];
+                    if t_plane > t1 {
+                        node_index = near;
+                    } else if t_plane < t0 {
+                        node_index = far;
+                    } else {
+                        // Both sides; a ray running inside the plane (NaN) keeps its interval
+                        // for both, since either may hold what it touches.
+                        let nan = t_plane.is_nan();
+                        stack[top] = MaybeUninit::new(Pending {
+                            node: far,
+                            t0: if nan { t0 } else { t_plane },
+                            t1,
+                        });
+                        top += 1;
+                        node_index = near;
+                        t1 = if nan { t1 } else { t_plane };
+                    }
+                    continue;
                 }
-                counters.leaf();
-                let sheared =
-                    sheared.get_or_insert_with(|| ShearedRay::with_reach(ray, layout.reach));
-                visit_leaf(sheared, words, ray.t_min, limit, counters, &mut visit)
-            },
-        );
+                let words = layout.leaf_words(node);
+                if !words.is_empty() {
+                    counters.leaf();
+                    let sheared =
+                        sheared.get_or_insert_with(|| ShearedRay::with_reach(ray, layout.reach));
+                    if visit_leaf(sheared, words, ray.t_min, &mut limit, counters, &mut visit) {
+                        return;
+                    }
+                }
+            }
+            if top == 0 {
+                return;
+            }
+            top -= 1;
+            // SAFETY: entries below `top` were all written by a push.
+            let p = unsafe { stack[top].assume_init() };
+            (node_index, t0, t1) = (p.node, p.t0, p.t1);
+        }
     }
 
     /// Makes the trace layout now if no query has made it yet (queries make it on first

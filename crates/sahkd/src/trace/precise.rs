@@ -5,14 +5,12 @@
 //! ground plane 3e5 across), those differences lose the triangle's shape and a float32 test
 //! can hit the wrong triangle or miss, in any float32 library. Here rays are f64, and corners
 //! (float32 in the tree) are widened to f64 before any arithmetic, so the shear, the edge
-//! functions and the distance carry 29 more bits. The walk is the float32 one-ray walk
-//! (`trace::walk_nodes`, generic over the precision) in f64 over the tree's own nodes (no
-//! trace layout, no scene scale: f64 holds every float32 scene), the test the float32 test's
-//! shear and edge functions (`triangle::Shear`) in f64.
+//! functions and the distance carry 29 more bits. The walk is the float32 walk's in f64 over
+//! the tree's own nodes (no trace layout, no scene scale: f64 holds every float32 scene).
 //! It is the plain one-ray walk, about a third of the packet walk's speed (BENCHMARKS.md).
 
-use super::triangle::Shear;
 use super::Ray;
+use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::Triangle;
 use crate::tree::KdTree;
 use rayon::prelude::*;
@@ -81,19 +79,42 @@ impl Hit64 {
     }
 }
 
-/// Per-ray constants of the watertight test (Woop, Benthin and Wald 2013) in f64: the
-/// float32 test's shear and edge functions (`triangle::Shear`), in f64.
+/// Per-ray constants of the watertight test (Woop, Benthin and Wald 2013) in f64.
 #[derive(Clone, Copy, Debug)]
 pub struct ShearedRay64 {
     origin: V,
-    shear: Shear<f64>,
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    sx: f64,
+    sy: f64,
+    sz: f64,
 }
 
 impl ShearedRay64 {
     pub fn new(ray: &Ray64) -> ShearedRay64 {
+        let d = ray.direction;
+        let abs = d.map(f64::abs);
+        let kz = if abs[0] >= abs[1] && abs[0] >= abs[2] {
+            0
+        } else if abs[1] >= abs[2] {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
         ShearedRay64 {
             origin: ray.origin,
-            shear: Shear::new(ray.direction),
+            kx,
+            ky,
+            kz,
+            sx: d[kx] / d[kz],
+            sy: d[ky] / d[kz],
+            sz: 1.0 / d[kz],
         }
     }
 
@@ -102,12 +123,29 @@ impl ShearedRay64 {
     /// whose origin lies on the triangle (within `2^-40` of its size) counts as `t_min`.
     #[inline(always)]
     pub fn intersect(&self, tri: &Triangle, t_min: f64, t_max: f64) -> Option<(f64, f64, f64)> {
+        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
         let o = self.origin;
-        let rel = [0, 1, 2].map(|i| [0, 1, 2].map(|a| tri[i][a] as f64 - o[a]));
-        let crossing = self.shear.cross(rel)?;
-        let ([_, ev, ew], det, z) = (crossing.e, crossing.det, crossing.z);
-        let t = crossing.t_det() / det;
-        let band = (z[0].abs() + z[1].abs() + z[2].abs()) * (1.0 / (1u64 << 40) as f64);
+        let rel = |i: usize| [0, 1, 2].map(|a| tri[i][a] as f64 - o[a]);
+        let (a, b, c) = (rel(0), rel(1), rel(2));
+        let ax = a[kx] - self.sx * a[kz];
+        let ay = a[ky] - self.sy * a[kz];
+        let bx = b[kx] - self.sx * b[kz];
+        let by = b[ky] - self.sy * b[kz];
+        let cx = c[kx] - self.sx * c[kz];
+        let cy = c[ky] - self.sy * c[kz];
+        let eu = cx * by - cy * bx;
+        let ev = ax * cy - ay * cx;
+        let ew = bx * ay - by * ax;
+        if (eu < 0.0 || ev < 0.0 || ew < 0.0) && (eu > 0.0 || ev > 0.0 || ew > 0.0) {
+            return None;
+        }
+        let det = eu + ev + ew;
+        if det == 0.0 {
+            return None;
+        }
+        let (az, bz, cz) = (self.sz * a[kz], self.sz * b[kz], self.sz * c[kz]);
+        let t = (eu * az + ev * bz + ew * cz) / det;
+        let band = (az.abs() + bz.abs() + cz.abs()) * (1.0 / (1u64 << 40) as f64);
         if !(t <= t_max && t >= t_min - band) {
             return None;
         }
@@ -191,35 +229,60 @@ impl KdTree {
         if !ray.is_valid() || self.triangles.is_empty() {
             return;
         }
-        let inv = ray.direction.map(|c| 1.0 / c);
-        let (lo, hi) = (
-            self.bounds.lo.0.map(f64::from),
-            self.bounds.hi.0.map(f64::from),
-        );
-        let range = (ray.t_min, ray.t_max);
-        let Some(interval) = super::clip(lo, hi, ray.origin, inv, range) else {
+        let (o, d) = (ray.origin, ray.direction);
+        let inv = d.map(|c| 1.0 / c);
+        let (mut t0, mut t1) = (ray.t_min, ray.t_max);
+        for a in 0..3 {
+            let (lo, hi) = (self.bounds.lo[a] as f64, self.bounds.hi[a] as f64);
+            if inv[a].is_finite() {
+                let (p, q) = ((lo - o[a]) * inv[a], (hi - o[a]) * inv[a]);
+                t0 = t0.max(p.min(q));
+                t1 = t1.min(p.max(q));
+            } else if !(o[a] >= lo && o[a] <= hi) {
+                return;
+            }
+        }
+        if t0 > t1 {
             return;
-        };
+        }
+        let near_is_right = [0, 1, 2].map(|a| d[a].is_sign_negative() as u32);
         let sheared = ShearedRay64::new(ray);
-        let nodes = &self.nodes;
-        super::walk_nodes(
-            nodes,
-            ray.origin,
-            inv,
-            interval,
-            ray.t_max,
-            &mut (),
-            |node, limit, _| {
+        let mut stack = Vec::with_capacity(MAX_DEPTH_CAP as usize + 4);
+        let mut node_index = 0u32;
+        let mut limit = ray.t_max;
+        loop {
+            if t0 <= limit {
+                let node = &self.nodes[node_index as usize];
+                if !node.is_leaf() {
+                    let axis = node.axis();
+                    let t_plane = (node.split() as f64 - o[axis]) * inv[axis];
+                    let near = node.left() + near_is_right[axis];
+                    let far = node.left() + 1 - near_is_right[axis];
+                    if t_plane > t1 {
+                        node_index = near;
+                    } else if t_plane < t0 {
+                        node_index = far;
+                    } else {
+                        let nan = t_plane.is_nan();
+                        stack.push((far, if nan { t0 } else { t_plane }, t1));
+                        node_index = near;
+                        t1 = if nan { t1 } else { t_plane };
+                    }
+                    continue;
+                }
                 for &prim in self.leaf_refs(node) {
                     let tri = &self.triangles[prim as usize];
-                    if let Some((t, u, v)) = sheared.intersect(tri, ray.t_min, *limit) {
-                        if visit(Hit64 { t, prim, u, v }, limit) {
-                            return true;
+                    if let Some((t, u, v)) = sheared.intersect(tri, ray.t_min, limit) {
+                        if visit(Hit64 { t, prim, u, v }, &mut limit) {
+                            return;
                         }
                     }
                 }
-                false
-            },
-        );
+            }
+            let Some((n, a, b)) = stack.pop() else {
+                return;
+            };
+            (node_index, t0, t1) = (n, a, b);
+        }
     }
 }

@@ -20,188 +20,17 @@ use super::Ray;
 use crate::geometry::{Triangle, Vec3};
 use crate::tree::layout::{block_record, WORDS};
 
-/// The float types a ray is walked and tested in: f32 for the queries, f64 for
-/// `trace::precise`. The node walk (`trace::walk_nodes`), the box clip and the shear
-/// ([`Shear::new`]) serve both, monomorphised, so each precision's answers are those of its
-/// own arithmetic. The watertight test ([`Shear::cross`]) is the f64 queries'; the float32
-/// one-triangle test ([`ShearedRay::intersect`]) is written out with the same operations
-/// in the same order, because the generic form compiled to slower code on the float32 hot
-/// path.
-pub(crate) trait Real:
-    Copy
-    + PartialOrd
-    + std::ops::Add<Output = Self>
-    + std::ops::Sub<Output = Self>
-    + std::ops::Mul<Output = Self>
-    + std::ops::Div<Output = Self>
-{
-    const ZERO: Self;
-    const ONE: Self;
-    fn abs(self) -> Self;
-    fn min(self, other: Self) -> Self;
-    fn max(self, other: Self) -> Self;
-    fn is_finite(self) -> bool;
-    fn is_nan(self) -> bool;
-    fn is_sign_negative(self) -> bool;
-    /// A float32 value (a corner, a split plane) in this precision.
-    fn of(x: f32) -> Self;
-    /// `p.x * q.y - p.y * q.x` in the widest precision there is, rounded back: an edge
-    /// function that came out exactly zero, computed again.
-    fn wide_edge(p: [Self; 2], q: [Self; 2]) -> Self;
-}
-
-/// `impl Real` for a float type, its own methods under the trait's names; `wide` is its
-/// `wide_edge`.
-macro_rules! real {
-    ($t:ident, $wide:expr) => {
-        impl Real for $t {
-            const ZERO: $t = 0.0;
-            const ONE: $t = 1.0;
-            #[inline(always)]
-            fn abs(self) -> $t {
-                $t::abs(self)
-            }
-            #[inline(always)]
-            fn min(self, other: $t) -> $t {
-                $t::min(self, other)
-            }
-            #[inline(always)]
-            fn max(self, other: $t) -> $t {
-                $t::max(self, other)
-            }
-            #[inline(always)]
-            fn is_finite(self) -> bool {
-                $t::is_finite(self)
-            }
-            #[inline(always)]
-            fn is_nan(self) -> bool {
-                $t::is_nan(self)
-            }
-            #[inline(always)]
-            fn is_sign_negative(self) -> bool {
-                $t::is_sign_negative(self)
-            }
-            #[inline(always)]
-            fn of(x: f32) -> $t {
-                x as $t
-            }
-            #[inline(always)]
-            fn wide_edge(p: [$t; 2], q: [$t; 2]) -> $t {
-                $wide(p, q)
-            }
-        }
-    };
-}
-
-real!(f32, |p: [f32; 2], q: [f32; 2]| {
-    (p[0] as f64 * q[1] as f64 - p[1] as f64 * q[0] as f64) as f32
-});
-real!(f64, edge);
-
-/// `p.x * q.y - p.y * q.x`: an edge function of two sheared corners.
-#[inline(always)]
-fn edge<F: Real>(p: [F; 2], q: [F; 2]) -> F {
-    p[0] * q[1] - p[1] * q[0]
-}
-
-/// The shear of a ray direction: `kz` the axis it runs along most, `kx` and `ky` the two
-/// across it (swapped for a negative direction, which keeps the triangles' winding as seen
-/// along the ray), and the factors that make the ray run along +z.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Shear<F> {
-    pub kx: usize,
-    pub ky: usize,
-    pub kz: usize,
-    pub sx: F,
-    pub sy: F,
-    pub sz: F,
-}
-
-/// Where a ray crosses a triangle's plane inside the triangle: the edge functions (the
-/// unnormalised barycentrics of corners 0, 1, 2), their sum `det`, and the corners' sheared
-/// depths, of which the distance is the weighted mean.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Crossing<F> {
-    pub e: [F; 3],
-    pub det: F,
-    pub z: [F; 3],
-}
-
-impl<F: Real> Crossing<F> {
-    /// `eu * az + ev * bz + ew * cz`: the distance times `det`.
-    #[inline(always)]
-    pub fn t_det(&self) -> F {
-        let (e, z) = (self.e, self.z);
-        e[0] * z[0] + e[1] * z[1] + e[2] * z[2]
-    }
-}
-
-impl<F: Real> Shear<F> {
-    #[inline(always)]
-    pub fn new(d: [F; 3]) -> Shear<F> {
-        let abs = [d[0].abs(), d[1].abs(), d[2].abs()];
-        let kz = if abs[0] >= abs[1] && abs[0] >= abs[2] {
-            0
-        } else if abs[1] >= abs[2] {
-            1
-        } else {
-            2
-        };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        if d[kz] < F::ZERO {
-            std::mem::swap(&mut kx, &mut ky);
-        }
-        Shear {
-            kx,
-            ky,
-            kz,
-            sx: d[kx] / d[kz],
-            sy: d[ky] / d[kz],
-            sz: F::ONE / d[kz],
-        }
-    }
-
-    /// The watertight test of a triangle whose corners, relative to the ray origin, are
-    /// `rel`: `None` when the ray passes outside it, along its plane, or it has no area.
-    /// An edge function that comes out exactly zero is computed again in the widest
-    /// precision ([`Real::wide_edge`]), as the paper recommends (for f64 that changes
-    /// nothing). `|` and `&` rather than `||` and `&&`: the
-    /// same answers, one branch instead of a chain of hard-to-predict ones.
-    #[inline(always)]
-    pub fn cross(&self, rel: [[F; 3]; 3]) -> Option<Crossing<F>> {
-        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
-        let across = |p: [F; 3]| [p[kx] - self.sx * p[kz], p[ky] - self.sy * p[kz]];
-        let (a, b, c) = (across(rel[0]), across(rel[1]), across(rel[2]));
-        let mut e = [edge(c, b), edge(a, c), edge(b, a)];
-        let zero = F::ZERO;
-        if (e[0] == zero) | (e[1] == zero) | (e[2] == zero) {
-            e = [F::wide_edge(c, b), F::wide_edge(a, c), F::wide_edge(b, a)];
-        }
-        if ((e[0] < zero) | (e[1] < zero) | (e[2] < zero))
-            & ((e[0] > zero) | (e[1] > zero) | (e[2] > zero))
-        {
-            return None;
-        }
-        let det = e[0] + e[1] + e[2];
-        if det == zero {
-            return None;
-        }
-        let z = [
-            self.sz * rel[0][kz],
-            self.sz * rel[1][kz],
-            self.sz * rel[2][kz],
-        ];
-        Some(Crossing { e, det, z })
-    }
-}
-
 /// Per-ray constants of the shear.
 #[derive(Clone, Copy, Debug)]
 pub struct ShearedRay {
     origin: Vec3,
     direction: Vec3,
-    shear: Shear<f32>,
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    sx: f32,
+    sy: f32,
+    sz: f32,
     /// How far below `t_min` a float32 distance is checked again in f64.
     band: f32,
 }
@@ -249,16 +78,35 @@ impl ShearedRay {
     /// short of `t_min` by less than `2^-20` of the distance the ray takes to cross it (the
     /// float32 error is a few `2^-24` of that) is checked again in f64.
     pub fn with_reach(ray: &Ray, reach: f32) -> ShearedRay {
-        let shear = Shear::new(ray.direction.0);
+        let d = ray.direction;
+        let abs = [d[0].abs(), d[1].abs(), d[2].abs()];
+        let kz = if abs[0] >= abs[1] && abs[0] >= abs[2] {
+            0
+        } else if abs[1] >= abs[2] {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the winding of the triangles as seen along the ray.
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
         ShearedRay {
             origin: ray.origin,
             direction: ray.direction,
-            shear,
+            kx,
+            ky,
+            kz,
+            sx: d[kx] / d[kz],
+            sy: d[ky] / d[kz],
+            sz: 1.0 / d[kz],
             // 2^-20, not wider: secondary rays start `render::OFFSET_SCALE` (1e-5, about
             // 2^-16.6) of the diagonal off their surface, and a band that reached their own
             // triangle sent nearly every one of them through the f64 check (10-25 % fewer
             // shadow, AO and bounce rays per second on dragon).
-            band: reach * (1.0 / 1_048_576.0) / ray.direction[shear.kz].abs(),
+            band: reach * (1.0 / 1_048_576.0) / d[kz].abs(),
         }
     }
 
@@ -266,17 +114,16 @@ impl ShearedRay {
     /// zero-area triangles never hit.
     #[inline(always)]
     pub fn intersect(&self, tri: &Triangle, t_min: f32, t_max: f32) -> Option<TriangleHit> {
-        let s = &self.shear;
-        let (kx, ky, kz, sx, sy, sz) = (s.kx, s.ky, s.kz, s.sx, s.sy, s.sz);
+        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
         let a = tri[0] - self.origin;
         let b = tri[1] - self.origin;
         let c = tri[2] - self.origin;
-        let ax = a[kx] - sx * a[kz];
-        let ay = a[ky] - sy * a[kz];
-        let bx = b[kx] - sx * b[kz];
-        let by = b[ky] - sy * b[kz];
-        let cx = c[kx] - sx * c[kz];
-        let cy = c[ky] - sy * c[kz];
+        let ax = a[kx] - self.sx * a[kz];
+        let ay = a[ky] - self.sy * a[kz];
+        let bx = b[kx] - self.sx * b[kz];
+        let by = b[ky] - self.sy * b[kz];
+        let cx = c[kx] - self.sx * c[kz];
+        let cy = c[ky] - self.sy * c[kz];
         let mut eu = cx * by - cy * bx;
         let mut ev = ax * cy - ay * cx;
         let mut ew = bx * ay - by * ax;
@@ -296,9 +143,9 @@ impl ShearedRay {
         if det == 0.0 {
             return None;
         }
-        let az = sz * a[kz];
-        let bz = sz * b[kz];
-        let cz = sz * c[kz];
+        let az = self.sz * a[kz];
+        let bz = self.sz * b[kz];
+        let cz = self.sz * c[kz];
         let inv = 1.0 / det;
         let mut t = (eu * az + ev * bz + ew * cz) * inv;
         if !((t >= t_min) & (t <= t_max)) {
@@ -369,8 +216,7 @@ impl ShearedRay {
         // are only computed with, never trusted).
         unsafe {
             let row = |r: usize| _mm_loadu_ps(p.add(r * k));
-            let s = &self.shear;
-            let (kx, ky, kz, sx, sy, sz) = (s.kx, s.ky, s.kz, s.sx, s.sy, s.sz);
+            let (kx, ky, kz) = (self.kx, self.ky, self.kz);
             let (ox, oy, oz) = (
                 _mm_set1_ps(self.origin.0[kx]),
                 _mm_set1_ps(self.origin.0[ky]),
@@ -388,7 +234,11 @@ impl ShearedRay {
             let (a_x, a_y, a_z) = relative(0);
             let (b_x, b_y, b_z) = relative(1);
             let (c_x, c_y, c_z) = relative(2);
-            let (sx, sy, sz) = (_mm_set1_ps(sx), _mm_set1_ps(sy), _mm_set1_ps(sz));
+            let (sx, sy, sz) = (
+                _mm_set1_ps(self.sx),
+                _mm_set1_ps(self.sy),
+                _mm_set1_ps(self.sz),
+            );
             let ax = _mm_sub_ps(a_x, _mm_mul_ps(sx, a_z));
             let ay = _mm_sub_ps(a_y, _mm_mul_ps(sy, a_z));
             let bx = _mm_sub_ps(b_x, _mm_mul_ps(sx, b_z));
