@@ -16,7 +16,7 @@ mod sweep;
 
 pub use options::{
     Algorithm, Axes, BuildOptions, Counting, Preset, BINNED_REFS_PER_BIN, FAST_BINS,
-    FAST_LEAF_SIZE, HYBRID_BINS, MAX_BINS,
+    FAST_LEAF_SIZE, FAST_TRAVERSAL, HYBRID_BINS, MAX_BINS,
 };
 pub use report::{BuildReport, LevelReport, PhaseTimes};
 
