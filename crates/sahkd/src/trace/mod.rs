@@ -215,6 +215,37 @@ impl RayPart {
     }
 }
 
+/// Where a ray's interval `[t0, t1]` goes at an interior node whose plane it meets at
+/// `t_plane`: the near child only, the far child only, or both, the far child from
+/// `far_t0` and the near child up to `near_t1`. A ray running inside the plane (NaN) keeps
+/// its interval for both, since either may hold what it touches. One rule for the float32
+/// and the f64 walks.
+#[derive(Clone, Copy)]
+pub(crate) enum Cut<T> {
+    Near,
+    Far,
+    Both { far_t0: T, near_t1: T },
+}
+
+#[inline(always)]
+pub(crate) fn cut<T: PartialOrd + Copy>(t_plane: T, t0: T, t1: T) -> Cut<T> {
+    if t_plane > t1 {
+        Cut::Near
+    } else if t_plane < t0 {
+        Cut::Far
+    } else if t_plane != t_plane {
+        Cut::Both {
+            far_t0: t0,
+            near_t1: t1,
+        }
+    } else {
+        Cut::Both {
+            far_t0: t_plane,
+            near_t1: t_plane,
+        }
+    }
+}
+
 /// The closest hit of a ray: distance, triangle and barycentrics `(u, v)` of corners 1 and 2.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
@@ -555,22 +586,19 @@ impl KdTree {
                     let t_plane = (node.split() - ray.origin[axis]) * inv[axis];
                     let near = left + near_is_right[axis];
                     let far = left + 1 - near_is_right[axis];
-                    if t_plane > t1 {
-                        node_index = near;
-                    } else if t_plane < t0 {
-                        node_index = far;
-                    } else {
-                        // Both sides; a ray running inside the plane (NaN) keeps its interval
-                        // for both, since either may hold what it touches.
-                        let nan = t_plane.is_nan();
-                        stack[top] = MaybeUninit::new(Pending {
-                            node: far,
-                            t0: if nan { t0 } else { t_plane },
-                            t1,
-                        });
-                        top += 1;
-                        node_index = near;
-                        t1 = if nan { t1 } else { t_plane };
+                    match cut(t_plane, t0, t1) {
+                        Cut::Near => node_index = near,
+                        Cut::Far => node_index = far,
+                        Cut::Both { far_t0, near_t1 } => {
+                            stack[top] = MaybeUninit::new(Pending {
+                                node: far,
+                                t0: far_t0,
+                                t1,
+                            });
+                            top += 1;
+                            node_index = near;
+                            t1 = near_t1;
+                        }
                     }
                     continue;
                 }

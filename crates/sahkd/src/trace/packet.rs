@@ -85,30 +85,9 @@ fn mask_of<const N: usize>(f: impl Fn(usize) -> bool) -> u32 {
 #[inline(always)]
 fn lt<const N: usize>(a: &[f32; N], b: &[f32; N]) -> u32 {
     #[cfg(target_arch = "x86_64")]
-    if N == 4 {
-        use std::arch::x86_64::{_mm_cmplt_ps, _mm_loadu_ps, _mm_movemask_ps};
-        // SAFETY: SSE is part of x86_64, and both arrays hold 4 floats. Hand-written because
-        // the portable loop compiled to a byte mask reassembled bit by bit (measured).
-        return unsafe {
-            _mm_movemask_ps(_mm_cmplt_ps(
-                _mm_loadu_ps(a.as_ptr()),
-                _mm_loadu_ps(b.as_ptr()),
-            )) as u32
-        };
-    }
-    #[cfg(target_arch = "x86_64")]
-    if N == 8 {
-        use std::arch::x86_64::{_mm_cmplt_ps, _mm_loadu_ps, _mm_movemask_ps};
-        // SAFETY: SSE is part of x86_64, and both arrays hold 8 floats: two halves of 4.
-        return unsafe {
-            let half = |k: usize| {
-                _mm_movemask_ps(_mm_cmplt_ps(
-                    _mm_loadu_ps(a.as_ptr().add(k)),
-                    _mm_loadu_ps(b.as_ptr().add(k)),
-                )) as u32
-            };
-            half(0) | half(4) << 4
-        };
+    if N % 4 == 0 {
+        // SAFETY: SSE is part of x86_64.
+        return unsafe { compare(a, b, std::arch::x86_64::_mm_cmplt_ps) };
     }
     mask_of::<N>(|i| a[i] < b[i])
 }
@@ -117,31 +96,42 @@ fn lt<const N: usize>(a: &[f32; N], b: &[f32; N]) -> u32 {
 #[inline(always)]
 fn le<const N: usize>(a: &[f32; N], b: &[f32; N]) -> u32 {
     #[cfg(target_arch = "x86_64")]
-    if N == 4 {
-        use std::arch::x86_64::{_mm_cmple_ps, _mm_loadu_ps, _mm_movemask_ps};
-        // SAFETY: as in `lt`.
-        return unsafe {
-            _mm_movemask_ps(_mm_cmple_ps(
-                _mm_loadu_ps(a.as_ptr()),
-                _mm_loadu_ps(b.as_ptr()),
-            )) as u32
-        };
-    }
-    #[cfg(target_arch = "x86_64")]
-    if N == 8 {
-        use std::arch::x86_64::{_mm_cmple_ps, _mm_loadu_ps, _mm_movemask_ps};
-        // SAFETY: SSE is part of x86_64, and both arrays hold 8 floats: two halves of 4.
-        return unsafe {
-            let half = |k: usize| {
-                _mm_movemask_ps(_mm_cmple_ps(
-                    _mm_loadu_ps(a.as_ptr().add(k)),
-                    _mm_loadu_ps(b.as_ptr().add(k)),
-                )) as u32
-            };
-            half(0) | half(4) << 4
-        };
+    if N % 4 == 0 {
+        // SAFETY: SSE is part of x86_64.
+        return unsafe { compare(a, b, std::arch::x86_64::_mm_cmple_ps) };
     }
     mask_of::<N>(|i| a[i] <= b[i])
+}
+
+/// The lane mask of an SSE comparison of `a` and `b`, 4 lanes at a time (`N` a multiple of
+/// 4). Hand-written because the portable loop compiled to a byte mask reassembled bit by bit
+/// (measured).
+///
+/// # Safety
+/// `N` must be a multiple of 4.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn compare<const N: usize>(
+    a: &[f32; N],
+    b: &[f32; N],
+    op: unsafe fn(
+        std::arch::x86_64::__m128,
+        std::arch::x86_64::__m128,
+    ) -> std::arch::x86_64::__m128,
+) -> u32 {
+    use std::arch::x86_64::{_mm_loadu_ps, _mm_movemask_ps};
+    let mut mask = 0;
+    for k in (0..N).step_by(4) {
+        // SAFETY: lanes k..k + 4 lie within both arrays, N being a multiple of 4.
+        let (x, y) = unsafe {
+            (
+                _mm_loadu_ps(a.as_ptr().add(k)),
+                _mm_loadu_ps(b.as_ptr().add(k)),
+            )
+        };
+        mask |= (unsafe { _mm_movemask_ps(op(x, y)) } as u32) << k;
+    }
+    mask
 }
 
 /// True when all rays have the same sign bit in each direction component, so one near/far

@@ -94,19 +94,7 @@ pub struct ShearedRay64 {
 impl ShearedRay64 {
     pub fn new(ray: &Ray64) -> ShearedRay64 {
         let d = ray.direction;
-        let abs = d.map(f64::abs);
-        let kz = if abs[0] >= abs[1] && abs[0] >= abs[2] {
-            0
-        } else if abs[1] >= abs[2] {
-            1
-        } else {
-            2
-        };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        if d[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
+        let (kx, ky, kz) = super::triangle::shear_axes(d);
         ShearedRay64 {
             origin: ray.origin,
             kx,
@@ -258,15 +246,14 @@ impl KdTree {
                     let t_plane = (node.split() as f64 - o[axis]) * inv[axis];
                     let near = node.left() + near_is_right[axis];
                     let far = node.left() + 1 - near_is_right[axis];
-                    if t_plane > t1 {
-                        node_index = near;
-                    } else if t_plane < t0 {
-                        node_index = far;
-                    } else {
-                        let nan = t_plane.is_nan();
-                        stack.push((far, if nan { t0 } else { t_plane }, t1));
-                        node_index = near;
-                        t1 = if nan { t1 } else { t_plane };
+                    match super::cut(t_plane, t0, t1) {
+                        super::Cut::Near => node_index = near,
+                        super::Cut::Far => node_index = far,
+                        super::Cut::Both { far_t0, near_t1 } => {
+                            stack.push((far, far_t0, t1));
+                            node_index = near;
+                            t1 = near_t1;
+                        }
                     }
                     continue;
                 }

@@ -68,6 +68,28 @@ pub fn plane_distance(tri: &Triangle, ray: &Ray) -> Option<f64> {
     t.is_finite().then_some(t)
 }
 
+/// The axes of the watertight test's shear for a ray along `d` (the float32 and f64 tests
+/// share them; float32 directions convert exactly): `kz` the largest component (ties to the
+/// lower axis), `kx` and `ky` the next two, swapped where `d[kz]` is negative so that the
+/// triangles keep their winding as seen along the ray.
+#[inline(always)]
+pub(crate) fn shear_axes(d: [f64; 3]) -> (usize, usize, usize) {
+    let abs = d.map(f64::abs);
+    let kz = if abs[0] >= abs[1] && abs[0] >= abs[2] {
+        0
+    } else if abs[1] >= abs[2] {
+        1
+    } else {
+        2
+    };
+    let (kx, ky) = ((kz + 1) % 3, (kz + 2) % 3);
+    if d[kz] < 0.0 {
+        (ky, kx, kz)
+    } else {
+        (kx, ky, kz)
+    }
+}
+
 impl ShearedRay {
     /// The test for `ray` alone: no hit short of `t_min` is checked again.
     pub fn new(ray: &Ray) -> ShearedRay {
@@ -79,20 +101,7 @@ impl ShearedRay {
     /// float32 error is a few `2^-24` of that) is checked again in f64.
     pub fn with_reach(ray: &Ray, reach: f32) -> ShearedRay {
         let d = ray.direction;
-        let abs = [d[0].abs(), d[1].abs(), d[2].abs()];
-        let kz = if abs[0] >= abs[1] && abs[0] >= abs[2] {
-            0
-        } else if abs[1] >= abs[2] {
-            1
-        } else {
-            2
-        };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        // Keep the winding of the triangles as seen along the ray.
-        if d[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
+        let (kx, ky, kz) = shear_axes(d.0.map(f64::from));
         ShearedRay {
             origin: ray.origin,
             direction: ray.direction,
