@@ -712,7 +712,7 @@ fn lay_out(top: Top, out: &mut BuiltTree, slot: usize) {
 
 #[cfg(test)]
 mod tests {
-    use super::super::testing::{grid_boxes, Lcg};
+    use super::super::testing::{counts_at, grid_rounds, Lcg};
     use super::*;
     use crate::geometry::Vec3;
 
@@ -731,12 +731,7 @@ mod tests {
         let mut best: Option<Split> = None;
         for a in axis_list {
             for p in planes(node, a, bins) {
-                let l = boxes.iter().filter(|b| b.lo[a] < p).count() as u32;
-                let r = boxes.iter().filter(|b| b.hi[a] > p).count() as u32;
-                let pl = boxes
-                    .iter()
-                    .filter(|b| b.lo[a] == p && b.hi[a] == p)
-                    .count() as u32;
+                let (l, r, pl) = counts_at(boxes, a, p);
                 let s = priced(&cost.splits_of(node, a), a, p, l, r, pl);
                 if s.beats(&best) {
                     best = Some(s);
@@ -748,14 +743,12 @@ mod tests {
 
     #[test]
     fn histograms_count_as_direct_counting_does() {
-        let mut rng = Lcg(5);
         let cost = CostModel::default();
-        for round in 0..300 {
+        // Corners on a grid of eighths that the boundaries of a [0, 4] box often hit, so ends
+        // and flat boxes lie in boundaries.
+        for (round, boxes) in grid_rounds(5, 80, (33, 9, 0.125, 4.0)) {
             let bins = [2, 3, 4, 8, 16][round % 5];
-            let n = 1 + rng.below(80) as usize;
-            // Corners on a grid of eighths that the boundaries of a [0, 4] box often hit, so
-            // ends and flat boxes lie in boundaries.
-            let boxes = grid_boxes(&mut rng, n, 33, 9, 0.125, 4.0);
+            let n = boxes.len();
             // Boxes reaching out of the node too, as with clipping off.
             let node = if round % 3 == 0 {
                 Aabb::new(Vec3::splat(0.5), Vec3::splat(3.5))

@@ -280,6 +280,32 @@ mod testing {
         }
     }
 
+    /// The boxes counted by brute force at the plane `p` on axis `a`: those starting below
+    /// it, those ending above it, and the flat ones lying in it.
+    pub(super) fn counts_at(boxes: &[Aabb], a: usize, p: f32) -> (u32, u32, u32) {
+        let count = |f: &dyn Fn(&Aabb) -> bool| boxes.iter().filter(|b| f(b)).count() as u32;
+        (
+            count(&|b| b.lo[a] < p),
+            count(&|b| b.hi[a] > p),
+            count(&|b| b.lo[a] == p && b.hi[a] == p),
+        )
+    }
+
+    /// 300 rounds (numbered) of [`grid_boxes`], each of 1 to `most` boxes, drawn from the
+    /// generator seeded with `seed`.
+    pub(super) fn grid_rounds(
+        seed: u64,
+        most: u64,
+        grid: (u64, u64, f32, f32),
+    ) -> impl Iterator<Item = (usize, Vec<Aabb>)> {
+        let mut rng = Lcg(seed);
+        let (cells, widths, step, cap) = grid;
+        (0..300).map(move |round| {
+            let n = 1 + rng.below(most) as usize;
+            (round, grid_boxes(&mut rng, n, cells, widths, step, cap))
+        })
+    }
+
     /// `n` boxes with corners on a grid of `step` (so that ends coincide and flat boxes lie
     /// in each other's planes): each axis starts at one of `cells` grid points and is flat one
     /// time in three, else up to `widths - 1` steps wide, its end kept at most `cap`.

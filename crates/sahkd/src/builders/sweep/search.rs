@@ -153,7 +153,7 @@ pub(super) fn priced(
 #[cfg(test)]
 mod tests {
     use super::super::events::{push_box, sort_prim_ordered};
-    use super::super::testing::{grid_boxes, Lcg};
+    use super::super::testing::{counts_at, grid_rounds};
     use super::*;
     use crate::geometry::Vec3;
 
@@ -170,12 +170,7 @@ mod tests {
                     if !(p > node.lo[a] && p < node.hi[a]) {
                         continue;
                     }
-                    let l = boxes.iter().filter(|b| b.lo[a] < p).count() as u32;
-                    let r = boxes.iter().filter(|b| b.hi[a] > p).count() as u32;
-                    let pl = boxes
-                        .iter()
-                        .filter(|b| b.lo[a] == p && b.hi[a] == p)
-                        .count() as u32;
+                    let (l, r, pl) = counts_at(boxes, a, p);
                     let cl = cost.split_cost(node, a, p, l + pl, r);
                     let cr = cost.split_cost(node, a, p, l, r + pl);
                     let (c, nl, nr) = if cl <= cr {
@@ -205,12 +200,10 @@ mod tests {
 
     #[test]
     fn sweep_matches_brute_force_search() {
-        let mut rng = Lcg(99);
         let cost = CostModel::default();
-        for round in 0..300 {
-            let n = 1 + rng.below(60) as usize;
-            // Coordinates on a coarse grid, so that coincident and planar events abound.
-            let boxes = grid_boxes(&mut rng, n, 9, 5, 0.5, f32::INFINITY);
+        // Coordinates on a coarse grid, so that coincident and planar events abound.
+        for (round, boxes) in grid_rounds(99, 60, (9, 5, 0.5, f32::INFINITY)) {
+            let n = boxes.len();
             let bounds = boxes.iter().fold(Aabb::EMPTY, |b, &x| b.union(x));
             // Sometimes a node box tighter than the primitives, as with clip off below the root.
             let node = if round % 3 == 0 {
