@@ -1,14 +1,16 @@
 //! A digest of the trees a builder makes, to check that a change keeps them bit-identical.
 //!
-//! `cargo run --release -p sahkd --example tree_digest -- [--algorithm sweep] [--threads 1]
-//! [--bins N] [--counting space-tree] bunny dragon_res2 dragon`
+//! `cargo run --release -p sahkd --example tree_digest -- [--preset fast] [--algorithm sweep]
+//! [--threads 1] [--bins N] [--counting space-tree] bunny dragon_res2 dragon`
 //!
+//! Without `--preset` the options are the defaults with the sweep; with it, the preset's
+//! (its builder too), and the flags given beside it override them.
 //! For each scene and each of `--axes longest|all` x `--clip on|off` it prints one line: an
 //! FNV-1a hash over every node (axis, split-position bits, child index or first reference and
 //! count) and every reference, then the node and reference counts and the build time. Scenes
 //! are read from `$SAHKD_SCENES` or `../shared/scenes` (relative to the workspace).
 
-use sahkd::{build_triangles, Algorithm, Axes, BuildOptions, Counting, KdTree, Mesh};
+use sahkd::{build_triangles, Algorithm, Axes, BuildOptions, KdTree, Mesh, Preset};
 use std::path::PathBuf;
 
 fn scenes_dir() -> PathBuf {
@@ -67,21 +69,30 @@ fn value<T>(flag: &str, v: Option<String>, parse: fn(&str) -> Option<T>, wants: 
 }
 
 fn main() {
-    let mut algorithm = Algorithm::Sweep;
+    let mut preset: Option<Preset> = None;
+    let mut algorithm = None;
     let mut threads = Some(1);
     let mut bins = None;
-    let mut counting = Counting::default();
+    let mut counting = None;
     let mut names = Vec::new();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
-            "--algorithm" => algorithm = value(&a, args.next(), named, "a builder's name"),
-            "--counting" => counting = value(&a, args.next(), named, "space-tree or scan"),
+            "--preset" => preset = Some(value(&a, args.next(), named, "a preset's name")),
+            "--algorithm" => algorithm = Some(value(&a, args.next(), named, "a builder's name")),
+            "--counting" => counting = Some(value(&a, args.next(), named, "space-tree or scan")),
             "--threads" => threads = Some(value(&a, args.next(), number, "a positive number")),
             "--bins" => bins = Some(value(&a, args.next(), number, "a number (0: exact)")),
             _ => names.push(a),
         }
     }
+    let base = match preset {
+        Some(p) => p.options(),
+        None => BuildOptions {
+            algorithm: Algorithm::Sweep,
+            ..BuildOptions::default()
+        },
+    };
     let dir = scenes_dir();
     println!("scene\taxes\tclip\tdigest\tnodes\trefs\tbuild ms");
     for name in &names {
@@ -95,13 +106,13 @@ fn main() {
         for axes in [Axes::Longest, Axes::All] {
             for clip in [true, false] {
                 let options = BuildOptions {
-                    algorithm,
+                    algorithm: algorithm.unwrap_or(base.algorithm),
                     axes,
                     clip,
                     threads,
-                    bins,
-                    counting,
-                    ..BuildOptions::default()
+                    bins: bins.or(base.bins),
+                    counting: counting.unwrap_or(base.counting),
+                    ..base
                 };
                 let b = match build_triangles(tris.clone(), &options) {
                     Ok(b) => b,

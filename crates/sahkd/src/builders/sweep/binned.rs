@@ -17,7 +17,7 @@
 //! the same tree (see there).
 
 use super::search::{best_split_of_boxes, priced, Split};
-use super::{build_subtree, Claims, Event, Subtree};
+use super::{build_subtree, Subtree};
 use crate::builders::choice::split_or_leaf;
 use crate::builders::options::BINNED_REFS_PER_BIN;
 use crate::builders::stitch::{self, Piece};
@@ -27,7 +27,6 @@ use crate::cost::CostModel;
 use crate::geometry::{Aabb, Triangle};
 use crate::tree::Node;
 use rayon::prelude::*;
-use std::cell::RefCell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
@@ -45,16 +44,6 @@ const PARALLEL_HISTOGRAM: usize = 1 << 16;
 /// price is one more sort of the node's events.
 const FORK_SHARE: usize = 16;
 const FORK_MIN: usize = 1024;
-
-/// A binned node of at most this many references has its whole subtree built on one worker
-/// by [`serial`], in buffers the worker keeps: no allocation per node, no task per node.
-/// Only builds binned below it (under 64 bins) reach it.
-const SERIAL_REFS: usize = 4096;
-
-/// A node of the serial part below the threshold holding more references than this gets the
-/// sweep's subtree ([`exact`]); smaller ones (with 2 bins, whose threshold is 128) are priced
-/// exactly one by one, from events made per node.
-const SMALL_EXACT: usize = 64;
 
 /// The references a node of the binned part holds: triangle indices (increasing) and the
 /// boxes the sweep would hold for them (clipped to the node on the way down when clipping).
@@ -108,8 +97,6 @@ struct Ctx<'a> {
     threshold: usize,
     /// Nodes below the threshold split here rather than by one sweep (see `FORK_SHARE`).
     fork_above: usize,
-    /// Binned nodes of at most this many references go to [`serial`] (`SERIAL_REFS`).
-    serial_refs: usize,
     max_depth: u32,
     budget: usize,
     /// Children of a binned node built at once, the budget kept as a shared guard.
@@ -123,23 +110,12 @@ struct Ctx<'a> {
 /// references (plus those clipping removed) fit the budget, the depth-first build could not
 /// have refused a split either: the same tree. Else the tree is built depth first.
 pub(crate) fn build(prims: &Primitives, options: &BuildOptions, parallel: bool) -> BuiltTree {
-    build_with(prims, options, parallel, SERIAL_REFS)
-}
-
-/// [`build`] with the binned nodes of at most `serial_refs` references built by [`serial`].
-fn build_with(
-    prims: &Primitives,
-    options: &BuildOptions,
-    parallel: bool,
-    serial_refs: usize,
-) -> BuiltTree {
     let n = prims.triangles.len();
     let ctx = Ctx {
         triangles: prims.triangles,
         options,
         threshold: BINNED_REFS_PER_BIN * options.resolved_bins() as usize,
         fork_above: (n / (FORK_SHARE * rayon::current_num_threads())).max(FORK_MIN),
-        serial_refs,
         max_depth: options.cost.max_depth_for(n),
         budget: options.cost.reference_budget(n),
         parallel: parallel && rayon::current_num_threads() > 1,
@@ -189,9 +165,6 @@ fn run(ctx: &Ctx, prims: &Primitives) -> Option<BuiltTree> {
 fn grow(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
     let n = node.ids.len();
     let binned = n > ctx.threshold;
-    if binned && n <= ctx.serial_refs {
-        return serial(ctx, node, total);
-    }
     let forked = ctx.parallel && n > ctx.fork_above;
     if !(binned || forked) {
         return exact(ctx, node, total);
@@ -208,17 +181,9 @@ fn grow(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
                 ctx.options.resolved_bins(),
                 cost,
                 ctx.parallel,
-                &mut BinBuffers::default(),
             )
         } else {
-            best_split_of_boxes(
-                &node.boxes,
-                &node.bounds,
-                ctx.options.axes,
-                cost,
-                &mut Default::default(),
-                &mut Vec::new(),
-            )
+            best_split_of_boxes(&node.boxes, &node.bounds, ctx.options.axes, cost)
         }
     });
     let split = split.filter(|s| {
@@ -369,174 +334,6 @@ fn route(
     }
 }
 
-/// A worker's buffers for [`serial`], kept from one subtree to the next.
-#[derive(Default)]
-struct Scratch {
-    /// The references of the pending nodes, each node's a range, in the order of the stack.
-    ids: Vec<u32>,
-    boxes: Vec<Aabb>,
-    /// A split's left child, gathered here while the right one is appended to `ids`/`boxes`.
-    left_ids: Vec<u32>,
-    left_boxes: Vec<Aabb>,
-    stack: Vec<Pending>,
-    bins: BinBuffers,
-    lists: [Vec<Event>; 3],
-    sort: Vec<Event>,
-}
-
-thread_local! {
-    static SCRATCH: RefCell<Scratch> = RefCell::new(Scratch::default());
-}
-
-/// A node of [`serial`]'s stack: its slot, box and depth, and its references' range.
-struct Pending {
-    slot: u32,
-    bounds: Aabb,
-    depth: u32,
-    start: usize,
-    len: usize,
-}
-
-/// The subtree of a binned node of at most [`SERIAL_REFS`] references, built depth first on
-/// this worker as the sweep builds (the same order, layout and budget rules): binned nodes
-/// are split by one pass appending the children's references to the worker's buffers, the
-/// right child's then the left's, above the pending nodes'; a node's range is dropped when
-/// it is taken off the stack, so the buffers hold a path's worth of references.
-fn serial(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
-    SCRATCH.with(|scratch| serial_in(ctx, node, total, &mut scratch.borrow_mut()))
-}
-
-fn serial_in(ctx: &Ctx, node: Refs, total: &AtomicUsize, s: &mut Scratch) -> (Top, Tally) {
-    let start = Instant::now();
-    let cost = &ctx.options.cost;
-    let mut tally = Tally::default();
-    let mut out = BuiltTree::default();
-    out.nodes.push(Node::leaf(0, 0));
-    let mut claims = Claims::new(ctx.parallel.then_some(total), ctx.budget);
-    s.ids.clear();
-    s.boxes.clear();
-    s.ids.extend_from_slice(&node.ids);
-    s.boxes.extend_from_slice(&node.boxes);
-    s.stack.clear();
-    s.stack.push(Pending {
-        slot: 0,
-        bounds: node.bounds,
-        depth: node.depth,
-        start: 0,
-        len: node.ids.len(),
-    });
-    drop(node);
-    let mut peak = 0;
-    while let Some(p) = s.stack.pop() {
-        let (n, end) = (p.len, p.start + p.len);
-        s.ids.truncate(end);
-        s.boxes.truncate(end);
-        if n <= ctx.threshold && n > SMALL_EXACT {
-            // Below a threshold above `SMALL_EXACT`: the sweep's subtree.
-            let refs = Refs {
-                ids: s.ids[p.start..end].to_vec(),
-                boxes: s.boxes[p.start..end].to_vec(),
-                bounds: p.bounds,
-                depth: p.depth,
-            };
-            let (Top::Exact(piece), t) = exact(ctx, refs, total) else {
-                unreachable!("exact builds a piece")
-            };
-            stitch::place(&mut out, p.slot as usize, &piece);
-            tally = tally.add(t);
-            continue;
-        }
-        let boxes = &s.boxes[p.start..end];
-        let (lists, sort, bins) = (&mut s.lists, &mut s.sort, &mut s.bins);
-        let split = split_or_leaf(n as u32, p.depth, ctx.max_depth, cost, || {
-            if n > ctx.threshold {
-                best_split(
-                    boxes,
-                    &p.bounds,
-                    ctx.options.axes,
-                    ctx.options.resolved_bins(),
-                    cost,
-                    false,
-                    bins,
-                )
-            } else {
-                best_split_of_boxes(boxes, &p.bounds, ctx.options.axes, cost, lists, sort)
-            }
-        });
-        let split = split.filter(|sp| {
-            let extra = (sp.n_left + sp.n_right) as usize - n;
-            let fits = if ctx.parallel {
-                claims.take(extra, ctx.budget)
-            } else {
-                total.load(Ordering::Relaxed) + extra <= ctx.budget
-            };
-            tally.budget_bound |= !fits;
-            fits
-        });
-        let Some(split) = split else {
-            let first = out.refs.len() as u32;
-            out.refs.extend_from_slice(&s.ids[p.start..end]);
-            out.nodes[p.slot as usize] = Node::leaf(first, n as u32);
-            continue;
-        };
-        let left = out.nodes.len() as u32;
-        out.nodes[p.slot as usize] = Node::interior(split.axis, split.pos, left);
-        out.nodes.extend([Node::leaf(0, 0); 2]);
-        s.left_ids.clear();
-        s.left_boxes.clear();
-        for i in p.start..end {
-            let (id, b) = (s.ids[i], s.boxes[i]);
-            route(ctx, id, &b, &p.bounds, &split, |side, c| {
-                if side == 0 {
-                    s.left_ids.push(id);
-                    s.left_boxes.push(c);
-                } else {
-                    s.ids.push(id);
-                    s.boxes.push(c);
-                }
-            });
-        }
-        let n_right = s.ids.len() - end;
-        let n_left = s.left_ids.len();
-        s.ids.extend_from_slice(&s.left_ids);
-        s.boxes.extend_from_slice(&s.left_boxes);
-        peak = peak.max(s.ids.len());
-        let kept = n_left + n_right;
-        tally.clipped_away += (split.n_left + split.n_right) as usize - kept;
-        if !ctx.parallel {
-            let now = total.load(Ordering::Relaxed);
-            total.store(now + kept - n, Ordering::Relaxed);
-        }
-        let (left_box, right_box) = p.bounds.split(split.axis, split.pos);
-        let depth = p.depth + 1;
-        s.stack.push(Pending {
-            slot: left + 1,
-            bounds: right_box,
-            depth,
-            start: end,
-            len: n_right,
-        });
-        s.stack.push(Pending {
-            slot: left,
-            bounds: left_box,
-            depth,
-            start: end + n_right,
-            len: n_left,
-        });
-    }
-    claims.give_back_unused();
-    // The sweeps' subtrees built here are inside this time.
-    tally.subtrees_ms = start.elapsed().as_secs_f64() * 1e3;
-    tally.peak_working_bytes = tally
-        .peak_working_bytes
-        .max(peak * (4 + std::mem::size_of::<Aabb>()));
-    let piece = Piece {
-        nodes: out.nodes,
-        refs: out.refs,
-    };
-    (Top::Exact(piece), tally)
-}
-
 /// The cheapest bin boundary of a node whose references have `boxes`, by the one ranking,
 /// or `None` when no boundary lies strictly inside the node.
 fn best_split(
@@ -546,7 +343,6 @@ fn best_split(
     bins: u32,
     cost: &CostModel,
     parallel: bool,
-    buffers: &mut BinBuffers,
 ) -> Option<Split> {
     let axis_list = match axes {
         Axes::All => 0..3,
@@ -558,21 +354,19 @@ fn best_split(
     let n = boxes.len() as u32;
     let mut best = None;
     for axis in axis_list {
-        let BinBuffers { planes, histograms } = buffers;
-        planes_into(planes, node, axis, bins);
+        let planes = planes(node, axis, bins);
         if planes.is_empty() {
             continue;
         }
-        if parallel && boxes.len() > PARALLEL_HISTOGRAM {
-            *histograms = boxes
+        let h = if parallel && boxes.len() > PARALLEL_HISTOGRAM {
+            boxes
                 .par_chunks(PARALLEL_HISTOGRAM / 4)
-                .map(|chunk| Histograms::of(chunk, axis, planes, node, bins))
+                .map(|chunk| Histograms::of(chunk, axis, &planes, node, bins))
                 .reduce_with(Histograms::add)
-                .expect("boxes is not empty");
+                .expect("boxes is not empty")
         } else {
-            histograms.count(boxes, axis, planes, node, bins);
-        }
-        let h = &*histograms;
+            Histograms::of(boxes, axis, &planes, node, bins)
+        };
         let (mut below, mut above) = (0, n);
         let splits = cost.splits_of(node, axis);
         for (j, &pos) in planes.iter().enumerate() {
@@ -593,34 +387,19 @@ fn best_split(
 /// The bin boundaries `lo + (hi - lo) * i / bins` of the node on `axis` that lie strictly
 /// inside it, increasing (boundaries that round onto the node's faces or onto each other,
 /// in a box thin for its coordinates, are dropped).
-#[cfg(test)]
 fn planes(node: &Aabb, axis: usize, bins: u32) -> Vec<f32> {
-    let mut out = Vec::new();
-    planes_into(&mut out, node, axis, bins);
-    out
-}
-
-/// [`planes`] written into `out`.
-fn planes_into(out: &mut Vec<f32>, node: &Aabb, axis: usize, bins: u32) {
     let (lo, hi) = (node.lo[axis], node.hi[axis]);
-    out.clear();
+    let mut out: Vec<f32> = Vec::with_capacity(bins as usize);
     for i in 1..bins {
         let p = lo + (hi - lo) * (i as f32 / bins as f32) + 0.0;
         if p > lo && p < hi && out.last().is_none_or(|&q| p > q) {
             out.push(p);
         }
     }
-}
-
-/// The buffers of a binned search, reused from node to node.
-#[derive(Default)]
-struct BinBuffers {
-    planes: Vec<f32>,
-    histograms: Histograms,
+    out
 }
 
 /// Counts of a node's references against its boundaries on one axis.
-#[derive(Default)]
 struct Histograms {
     /// By the number of boundaries at or below a reference's lo end (`planes.len() + 1`).
     lo: Vec<u32>,
@@ -632,19 +411,12 @@ struct Histograms {
 
 impl Histograms {
     fn of(boxes: &[Aabb], axis: usize, planes: &[f32], node: &Aabb, bins: u32) -> Histograms {
-        let mut h = Histograms::default();
-        h.count(boxes, axis, planes, node, bins);
-        h
-    }
-
-    /// The counts of `boxes`, replacing these.
-    fn count(&mut self, boxes: &[Aabb], axis: usize, planes: &[f32], node: &Aabb, bins: u32) {
         let m = planes.len();
-        let h = self;
-        for (v, len) in [(&mut h.lo, m + 1), (&mut h.hi, m + 1), (&mut h.planar, m)] {
-            v.clear();
-            v.resize(len, 0);
-        }
+        let mut h = Histograms {
+            lo: vec![0; m + 1],
+            hi: vec![0; m + 1],
+            planar: vec![0; m],
+        };
         // The bin a value falls in, guessed by arithmetic, then made exact by comparing with
         // the boundaries themselves (usually no step), so that the counts are the exact ones.
         let origin = node.lo[axis];
@@ -672,6 +444,7 @@ impl Histograms {
             }
             h.hi[k] += 1;
         }
+        h
     }
 
     fn add(mut self, other: Histograms) -> Histograms {
@@ -712,7 +485,7 @@ fn lay_out(top: Top, out: &mut BuiltTree, slot: usize) {
 
 #[cfg(test)]
 mod tests {
-    use super::super::testing::{counts_at, grid_rounds, Lcg};
+    use super::super::testing::{counts_at, grid_rounds};
     use super::*;
     use crate::geometry::Vec3;
 
@@ -756,15 +529,7 @@ mod tests {
                 Aabb::new(Vec3::splat(0.0), Vec3::splat(4.0))
             };
             for axes in [Axes::All, Axes::Longest] {
-                let got = best_split(
-                    &boxes,
-                    &node,
-                    axes,
-                    bins,
-                    &cost,
-                    false,
-                    &mut Default::default(),
-                );
+                let got = best_split(&boxes, &node, axes, bins, &cost, false);
                 let want = brute(&boxes, &node, axes, bins, &cost);
                 assert_eq!(got, want, "round {round}, {bins} bins, {axes:?}");
             }
@@ -778,61 +543,6 @@ mod tests {
                 (whole.lo, whole.hi, whole.planar),
                 (sum.lo, sum.hi, sum.planar)
             );
-        }
-    }
-
-    /// The worker's loop over a subtree ([`serial`]) splits as the node-by-node recursion
-    /// does and lays the nodes out alike: the same arrays, on one worker and on two.
-    #[test]
-    fn the_serial_loop_builds_the_tree_of_the_recursion() {
-        let mut rng = Lcg(17);
-        let coordinate = |rng: &mut Lcg| rng.below(1 << 16) as f32 / 4096.0;
-        let triangles: Vec<Triangle> = (0..6000)
-            .map(|_| {
-                let a = Vec3::new(
-                    coordinate(&mut rng),
-                    coordinate(&mut rng),
-                    coordinate(&mut rng),
-                );
-                let d = |rng: &mut Lcg| rng.below(64) as f32 / 256.0;
-                let b = a + Vec3::new(d(&mut rng), d(&mut rng), 0.0);
-                let c = a + Vec3::new(0.0, d(&mut rng), d(&mut rng));
-                [a, b, c]
-            })
-            .collect();
-        let boxes: Vec<Aabb> = triangles
-            .iter()
-            .map(crate::geometry::triangle_bounds)
-            .collect();
-        let prims = Primitives {
-            triangles: &triangles,
-            bounds: boxes.iter().fold(Aabb::EMPTY, |b, &x| b.union(x)),
-            boxes,
-        };
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap();
-        for bins in [2, 4, 16] {
-            for clip in [false, true] {
-                for axes in [Axes::Longest, Axes::All] {
-                    let options = BuildOptions {
-                        bins: Some(bins),
-                        clip,
-                        axes,
-                        ..BuildOptions::default()
-                    };
-                    let want = build_with(&prims, &options, false, 0);
-                    for parallel in [false, true] {
-                        let got =
-                            pool.install(|| build_with(&prims, &options, parallel, SERIAL_REFS));
-                        let what =
-                            format!("{bins} bins, clip {clip}, {axes:?}, parallel {parallel}");
-                        assert_eq!(got.nodes, want.nodes, "{what}");
-                        assert_eq!(got.refs, want.refs, "{what}");
-                    }
-                }
-            }
         }
     }
 

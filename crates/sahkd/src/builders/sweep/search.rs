@@ -38,20 +38,18 @@ pub(super) fn best_split(
 
 /// The split [`best_split`] finds for a node whose references have `boxes`, from events made
 /// and sorted here for the axes it prices: the sweep's choice for a node that is not on a
-/// sweep's stack (the binned builder's nodes below its threshold, built at once). `lists`
-/// and `scratch` are buffers, emptied first.
+/// sweep's stack (the binned builder's nodes below its threshold, built at once).
 pub(super) fn best_split_of_boxes(
     boxes: &[Aabb],
     node: &Aabb,
     axes: Axes,
     cost: &CostModel,
-    lists: &mut [Vec<Event>; 3],
-    scratch: &mut Vec<Event>,
 ) -> Option<Split> {
+    let mut lists: [Vec<Event>; 3] = Default::default();
+    let mut scratch = Vec::new();
     for (axis, list) in lists.iter_mut().enumerate() {
-        list.clear();
         if axes == Axes::All || axis == node.longest_axis() {
-            events::sorted_of_boxes(list, axis, boxes, scratch);
+            events::sorted_of_boxes(list, axis, boxes, &mut scratch);
         }
     }
     let events = [&lists[0][..], &lists[1][..], &lists[2][..]];
