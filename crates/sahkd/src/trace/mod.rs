@@ -9,7 +9,7 @@
 //! beyond the best hit are dropped. One walk ([`KdTree::for_each_hit`] and the private `walk`)
 //! serves closest hit, any hit and all hits; it runs over the tree's `layout` copy, made on
 //! the first query: nodes depth first, leaves' triangles stored in leaf order. The batch calls
-//! walk neighbouring rays four at a time (`packet`), with the same answers.
+//! walk neighbouring rays in packets of 4 or 8 (`packet`), with the same answers.
 //!
 //! Ties: the closest hit is the least (reported `t`, triangle index) of all the ray's hits,
 //! so two triangles at one distance (coplanar ones, or neighbours sharing the edge the ray
