@@ -40,7 +40,8 @@ pub const EDGE_CLEARANCE: f32 = 1e-4;
 pub(crate) fn crossings(tree: &KdTree, p: Vec3, d: Vec3, buf: &mut Vec<u32>) -> (bool, bool) {
     buf.clear();
     let mut clear = true;
-    tree.for_each_hit(&Ray::new(p, d), |h| {
+    // Only the triangles and barycentrics count here, not the distances.
+    tree.for_each_crossing(&Ray::new(p, d), |h| {
         clear &= h.u.min(h.v).min(1.0 - h.u - h.v) > EDGE_CLEARANCE;
         buf.push(h.prim)
     });

@@ -439,6 +439,17 @@ impl KdTree {
         });
     }
 
+    /// [`for_each_hit`](Self::for_each_hit) without each hit's distance refined: the same
+    /// triangles and barycentrics, `t` left as the walk's float32 estimate in the layout's
+    /// scale. For callers that only count crossings (the parity inside test): refining reads
+    /// each hit triangle's corners from the unscaled mesh, a cache miss apiece.
+    pub(crate) fn for_each_crossing(&self, ray: &Ray, mut f: impl FnMut(Hit)) {
+        self.walk(ray, &mut (), |hit, _| {
+            f(hit);
+            false
+        });
+    }
+
     /// Closest hits of many rays on every core of the current rayon pool, each the answer of
     /// [`intersect`](Self::intersect): neighbouring rays are walked together in packets
     /// (`trace::packet`), which changes nothing in the results. The result of each ray does
