@@ -1,6 +1,8 @@
-//! Ray and point queries of trees and scene trees. One generic body per query
-//! ([`Target`] is what a tree and a scene tree both answer); the `extern "C"` functions only
-//! name their arguments.
+//! Ray and point queries of trees and scene trees. One generic body per query, over a
+//! [`Target`] (what a tree and a scene tree both answer); each `extern "C"` function only
+//! hands its arguments to its body. The functions themselves are written out, tree and scene
+//! each, because cbindgen reads the sources without expanding macros: a function a macro made
+//! would be missing from include/sahkd.h.
 
 use crate::checked::{get, put, Strided};
 use crate::mesh::sahkd_tree;
@@ -105,162 +107,145 @@ const NOWHERE: sahkd_closest = sahkd_closest {
     geometry: SAHKD_INVALID_ID,
 };
 
-fn tree_hit(h: Option<Hit>) -> sahkd_hit {
-    h.map_or(MISS, |h| sahkd_hit {
-        t: h.t,
-        u: h.u,
-        v: h.v,
-        prim: h.prim,
-        geometry: 0,
-    })
+/// The library's hits and closest points of one kind (tree or scene: the same fields but for
+/// the geometry id) as the C API reports them; `$geometry` is the answer's geometry id.
+macro_rules! answers {
+    ($hit:ty, $closest:ty, |$a:ident| $geometry:expr) => {
+        impl From<$hit> for sahkd_hit {
+            fn from($a: $hit) -> sahkd_hit {
+                let (t, u, v, prim) = ($a.t, $a.u, $a.v, $a.prim);
+                let geometry = $geometry;
+                sahkd_hit {
+                    t,
+                    u,
+                    v,
+                    prim,
+                    geometry,
+                }
+            }
+        }
+
+        impl From<$closest> for sahkd_closest {
+            fn from($a: $closest) -> sahkd_closest {
+                let (point, distance, barycentrics) = ($a.point, $a.distance, $a.barycentrics);
+                let (prim, geometry) = ($a.prim, $geometry);
+                sahkd_closest {
+                    point,
+                    distance,
+                    barycentrics,
+                    prim,
+                    geometry,
+                }
+            }
+        }
+    };
 }
 
-fn scene_hit(h: Option<SceneHit>) -> sahkd_hit {
-    h.map_or(MISS, |h| sahkd_hit {
-        t: h.t,
-        u: h.u,
-        v: h.v,
-        prim: h.prim,
-        geometry: h.geometry,
-    })
+answers!(Hit, ClosestPoint, |a| 0);
+answers!(SceneHit, SceneClosestPoint, |a| a.geometry);
+
+/// The point queries a handle forwards to the library: `KdTree` and `SceneTree` name them
+/// alike (a scene judges inside each geometry alone, so these are not the tree's answers).
+macro_rules! point_queries {
+    ($field:ident) => {
+        fn nearest(&self, p: Vec3) -> sahkd_closest {
+            self.$field.closest_point(p).map_or(NOWHERE, Into::into)
+        }
+        fn nearest_many(&self, points: &[Vec3]) -> Vec<sahkd_closest> {
+            let found = self.$field.closest_point_batch(points);
+            found
+                .into_iter()
+                .map(|c| c.map_or(NOWHERE, Into::into))
+                .collect()
+        }
+        fn signed_distance(&self, p: Vec3, test: InsideTest) -> f64 {
+            self.$field.signed_distance(p, test)
+        }
+        fn signed_distance_many(&self, points: &[Vec3], test: InsideTest) -> Vec<f64> {
+            self.$field.signed_distance_batch(points, test)
+        }
+        fn contains(&self, p: Vec3, test: InsideTest) -> bool {
+            self.$field.contains(p, test)
+        }
+        fn contains_many(&self, points: &[Vec3], test: InsideTest) -> Vec<bool> {
+            self.$field.contains_batch(points, test)
+        }
+    };
 }
 
-fn tree_closest(c: Option<ClosestPoint>) -> sahkd_closest {
-    c.map_or(NOWHERE, |c| sahkd_closest {
-        point: c.point,
-        distance: c.distance,
-        barycentrics: c.barycentrics,
-        prim: c.prim,
-        geometry: 0,
-    })
-}
-
-fn scene_closest(c: Option<SceneClosestPoint>) -> sahkd_closest {
-    c.map_or(NOWHERE, |c| sahkd_closest {
-        point: c.point,
-        distance: c.distance,
-        barycentrics: c.barycentrics,
-        prim: c.prim,
-        geometry: c.geometry,
-    })
-}
-
-/// What a tree and a scene tree both answer, for one ray or point and for arrays of them
-/// (`parallel`: on every core; else on the calling thread).
+/// What a tree and a scene tree both answer. Rays walk the one tree either holds (a scene's
+/// hits only renamed afterwards), so the ray queries and distances are written once, below;
+/// the point queries that differ (geometry ids, inside) come from the library's own methods.
 pub(crate) trait Target: Sync {
-    fn closest(&self, ray: &Ray) -> sahkd_hit;
-    fn any(&self, ray: &Ray) -> bool;
-    fn closest_many(&self, rays: &[Ray], parallel: bool) -> Vec<sahkd_hit>;
-    fn any_many(&self, rays: &[Ray], parallel: bool) -> Vec<bool>;
+    /// What the handle is called in messages ("tree" or "scene").
+    const NAME: &'static str;
+    /// The tree rays and distances walk.
+    fn tree(&self) -> &KdTree;
+    /// A hit of that tree as this handle reports it.
+    fn hit(&self, h: Hit) -> sahkd_hit;
     fn nearest(&self, p: Vec3) -> sahkd_closest;
     fn nearest_many(&self, points: &[Vec3]) -> Vec<sahkd_closest>;
-    fn distance(&self, p: Vec3) -> f64;
-    fn distance_many(&self, points: &[Vec3]) -> Vec<f64>;
     fn signed_distance(&self, p: Vec3, test: InsideTest) -> f64;
     fn signed_distance_many(&self, points: &[Vec3], test: InsideTest) -> Vec<f64>;
     fn contains(&self, p: Vec3, test: InsideTest) -> bool;
     fn contains_many(&self, points: &[Vec3], test: InsideTest) -> Vec<bool>;
+
+    /// The closest hit of one ray.
+    fn closest(&self, ray: &Ray) -> sahkd_hit {
+        self.tree().intersect(ray).map_or(MISS, |h| self.hit(h))
+    }
+    /// Whether one ray hits anything.
+    fn any(&self, ray: &Ray) -> bool {
+        self.tree().occluded(ray)
+    }
 }
 
 impl Target for sahkd_tree {
-    fn closest(&self, ray: &Ray) -> sahkd_hit {
-        tree_hit(self.tree.intersect(ray))
+    const NAME: &'static str = "tree";
+    fn tree(&self) -> &KdTree {
+        &self.tree
     }
-    fn any(&self, ray: &Ray) -> bool {
-        self.tree.occluded(ray)
+    fn hit(&self, h: Hit) -> sahkd_hit {
+        h.into()
     }
-    fn closest_many(&self, rays: &[Ray], parallel: bool) -> Vec<sahkd_hit> {
-        let hits = if parallel {
-            self.tree.intersect_batch(rays)
-        } else {
-            let mut out = vec![None; rays.len()];
-            self.tree.intersect_into(rays, &mut out);
-            out
-        };
-        hits.into_iter().map(tree_hit).collect()
-    }
-    fn any_many(&self, rays: &[Ray], parallel: bool) -> Vec<bool> {
-        if parallel {
-            self.tree.occluded_batch(rays)
-        } else {
-            let mut out = vec![false; rays.len()];
-            self.tree.occluded_into(rays, &mut out);
-            out
-        }
-    }
-    fn nearest(&self, p: Vec3) -> sahkd_closest {
-        tree_closest(self.tree.closest_point(p))
-    }
-    fn nearest_many(&self, points: &[Vec3]) -> Vec<sahkd_closest> {
-        let found = self.tree.closest_point_batch(points);
-        found.into_iter().map(tree_closest).collect()
-    }
-    fn distance(&self, p: Vec3) -> f64 {
-        self.tree.distance(p)
-    }
-    fn distance_many(&self, points: &[Vec3]) -> Vec<f64> {
-        self.tree.distance_batch(points)
-    }
-    fn signed_distance(&self, p: Vec3, test: InsideTest) -> f64 {
-        self.tree.signed_distance(p, test)
-    }
-    fn signed_distance_many(&self, points: &[Vec3], test: InsideTest) -> Vec<f64> {
-        self.tree.signed_distance_batch(points, test)
-    }
-    fn contains(&self, p: Vec3, test: InsideTest) -> bool {
-        self.tree.contains(p, test)
-    }
-    fn contains_many(&self, points: &[Vec3], test: InsideTest) -> Vec<bool> {
-        self.tree.contains_batch(points, test)
-    }
+    point_queries!(tree);
 }
 
 impl Target for sahkd_scene_tree {
-    fn closest(&self, ray: &Ray) -> sahkd_hit {
-        scene_hit(self.scene.intersect(ray))
+    const NAME: &'static str = "scene";
+    fn tree(&self) -> &KdTree {
+        self.scene.tree()
     }
-    fn any(&self, ray: &Ray) -> bool {
-        self.scene.occluded(ray)
+    fn hit(&self, h: Hit) -> sahkd_hit {
+        self.scene.scene_hit(h).into()
     }
-    fn closest_many(&self, rays: &[Ray], parallel: bool) -> Vec<sahkd_hit> {
-        let hits = if parallel {
-            self.scene.intersect_batch(rays)
-        } else {
-            rays.iter().map(|r| self.scene.intersect(r)).collect()
-        };
-        hits.into_iter().map(scene_hit).collect()
+    point_queries!(scene);
+}
+
+/// Closest hits of `rays` (`parallel`: on every core; else on the calling thread).
+fn closest_many(t: &impl Target, rays: &[Ray], parallel: bool) -> Vec<sahkd_hit> {
+    let answer = |h: Option<Hit>| h.map_or(MISS, |h| t.hit(h));
+    if parallel {
+        let hits = t.tree().intersect_batch(rays);
+        hits.into_par_iter()
+            .with_min_len(1024)
+            .map(answer)
+            .collect()
+    } else {
+        let mut out = vec![None; rays.len()];
+        t.tree().intersect_into(rays, &mut out);
+        out.into_iter().map(answer).collect()
     }
-    fn any_many(&self, rays: &[Ray], parallel: bool) -> Vec<bool> {
-        if parallel {
-            self.scene.occluded_batch(rays)
-        } else {
-            rays.iter().map(|r| self.scene.occluded(r)).collect()
-        }
-    }
-    fn nearest(&self, p: Vec3) -> sahkd_closest {
-        scene_closest(self.scene.closest_point(p))
-    }
-    fn nearest_many(&self, points: &[Vec3]) -> Vec<sahkd_closest> {
-        let found = self.scene.closest_point_batch(points);
-        found.into_iter().map(scene_closest).collect()
-    }
-    fn distance(&self, p: Vec3) -> f64 {
-        self.scene.distance(p)
-    }
-    fn distance_many(&self, points: &[Vec3]) -> Vec<f64> {
-        self.scene.distance_batch(points)
-    }
-    fn signed_distance(&self, p: Vec3, test: InsideTest) -> f64 {
-        self.scene.signed_distance(p, test)
-    }
-    fn signed_distance_many(&self, points: &[Vec3], test: InsideTest) -> Vec<f64> {
-        self.scene.signed_distance_batch(points, test)
-    }
-    fn contains(&self, p: Vec3, test: InsideTest) -> bool {
-        self.scene.contains(p, test)
-    }
-    fn contains_many(&self, points: &[Vec3], test: InsideTest) -> Vec<bool> {
-        self.scene.contains_batch(points, test)
+}
+
+/// Any-hit answers of `rays`, as [`closest_many`].
+fn any_many(t: &impl Target, rays: &[Ray], parallel: bool) -> Vec<bool> {
+    if parallel {
+        t.tree().occluded_batch(rays)
+    } else {
+        let mut out = vec![false; rays.len()];
+        t.tree().occluded_into(rays, &mut out);
+        out
     }
 }
 
@@ -284,6 +269,11 @@ fn inside(test: u32) -> Result<InsideTest> {
     }
 }
 
+/// Runs one call on a tree or scene handle (checked, then borrowed), as [`guard`] does.
+unsafe fn on<T: Target>(handle: *const T, f: impl FnOnce(&T) -> Result<()>) -> sahkd_status {
+    guard(|| f(get(handle, T::NAME)?))
+}
+
 fn ray_of(r: &sahkd_ray) -> Ray {
     Ray::new(Vec3(r.origin), Vec3(r.direction)).with_range(r.t_min, r.t_max)
 }
@@ -298,6 +288,23 @@ fn checked(ray: Ray, what: impl FnOnce() -> String) -> Result<Ray> {
 
 unsafe fn one_ray(ray: *const sahkd_ray) -> Result<Ray> {
     checked(ray_of(get(ray, "ray")?), || "ray".into())
+}
+
+/// An array of rays as a call received it: structures `stride` bytes apart (0: packed), or
+/// separate arrays; read (and every ray checked) by [`Rays::read`].
+#[derive(Clone, Copy)]
+enum Rays {
+    Aos(*const sahkd_ray, usize, usize),
+    Soa(*const sahkd_rays_soa, usize),
+}
+
+impl Rays {
+    unsafe fn read(self) -> Result<Vec<Ray>> {
+        match self {
+            Rays::Aos(rays, count, stride) => aos_rays(rays, count, stride),
+            Rays::Soa(soa, count) => soa_rays(soa, count),
+        }
+    }
 }
 
 unsafe fn aos_rays(rays: *const sahkd_ray, count: usize, stride: usize) -> Result<Vec<Ray>> {
@@ -362,16 +369,6 @@ unsafe fn check_out<T: Copy>(out: *mut T, count: usize, stride: usize, what: &st
     Strided::new(out, count, stride, what).map(|_| ())
 }
 
-unsafe fn intersect_one(t: &impl Target, ray: *const sahkd_ray, hit: *mut sahkd_hit) -> Result<()> {
-    let ray = one_ray(ray)?;
-    put(hit, t.closest(&ray), "hit")
-}
-
-unsafe fn occluded_one(t: &impl Target, ray: *const sahkd_ray, out: *mut bool) -> Result<()> {
-    let ray = one_ray(ray)?;
-    put(out, t.any(&ray), "occluded")
-}
-
 unsafe fn write_hits_soa(hits: *const sahkd_hits_soa, found: Vec<sahkd_hit>) -> Result<()> {
     let h = get(hits, "hits")?;
     let n = found.len();
@@ -397,13 +394,15 @@ unsafe fn write_hits_soa(hits: *const sahkd_hits_soa, found: Vec<sahkd_hit>) -> 
     Ok(())
 }
 
+/// Query points as a call received them: `count` points of 3 floats, `stride` bytes apart
+/// (0: packed).
+#[derive(Clone, Copy)]
+struct Points(*const f32, usize, usize);
+
 /// Point queries share their reading, flag and writing; `single` answers one point (the
 /// serial path), `many` an array on every core.
-#[allow(clippy::too_many_arguments)]
 unsafe fn point_query<T: Copy + Send>(
-    p: *const f32,
-    count: usize,
-    stride: usize,
+    Points(p, count, stride): Points,
     out: *mut T,
     out_stride: usize,
     flags: u32,
@@ -421,6 +420,107 @@ unsafe fn point_query<T: Copy + Send>(
     write_all(out, out_stride, values, "out")
 }
 
+// ---- The bodies trees and scene trees share ----------------------------------------------
+
+/// A query of one ray, `answer`, written to `out`.
+unsafe fn one_ray_query<T: Target, V>(
+    handle: *const T,
+    ray: *const sahkd_ray,
+    out: *mut V,
+    what: &str,
+    answer: impl FnOnce(&T, &Ray) -> V,
+) -> sahkd_status {
+    on(handle, |t| {
+        let ray = one_ray(ray)?;
+        put(out, answer(t, &ray), what)
+    })
+}
+
+/// Where an array query's answers go: `stride` bytes apart (0: packed), and its name for
+/// messages.
+struct Out<V>(*mut V, usize, &'static str);
+
+/// A query of an array of rays, `answer` (`closest_many` or `any_many`), written to `out`.
+unsafe fn rays_query<T: Target, V: Copy>(
+    handle: *const T,
+    rays: Rays,
+    Out(out, stride, what): Out<V>,
+    flags: u32,
+    answer: impl FnOnce(&T, &[Ray], bool) -> Vec<V>,
+) -> sahkd_status {
+    on(handle, |t| {
+        let parallel = parallel(flags)?;
+        let rays = rays.read()?;
+        check_out(out, rays.len(), stride, what)?;
+        write_all(out, stride, answer(t, &rays, parallel), what)
+    })
+}
+
+unsafe fn intersect_soa<T: Target>(
+    handle: *const T,
+    rays: *const sahkd_rays_soa,
+    count: usize,
+    hits: *const sahkd_hits_soa,
+    flags: u32,
+) -> sahkd_status {
+    on(handle, |t| {
+        let parallel = parallel(flags)?;
+        let rays = soa_rays(rays, count)?;
+        get(hits, "hits")?;
+        write_hits_soa(hits, closest_many(t, &rays, parallel))
+    })
+}
+
+unsafe fn closest_point<T: Target>(
+    handle: *const T,
+    points: Points,
+    out: *mut sahkd_closest,
+    out_stride: usize,
+    flags: u32,
+) -> sahkd_status {
+    on(handle, |t| {
+        let (single, many) = (|p| t.nearest(p), |ps: &[Vec3]| t.nearest_many(ps));
+        point_query(points, out, out_stride, flags, single, many)
+    })
+}
+
+unsafe fn distance<T: Target>(
+    handle: *const T,
+    points: Points,
+    out: *mut f64,
+    out_stride: usize,
+    flags: u32,
+) -> sahkd_status {
+    on(handle, |t| {
+        let tree = t.tree();
+        let (single, many) = (|p| tree.distance(p), |ps: &[Vec3]| tree.distance_batch(ps));
+        point_query(points, out, out_stride, flags, single, many)
+    })
+}
+
+/// A query by an inside test, signed distance or containment: `by` is its pair of
+/// [`Target`] methods (one point, an array on every core).
+unsafe fn inside_query<T: Target, V: Copy + Send, S, M>(
+    handle: *const T,
+    points: Points,
+    test: u32,
+    out: *mut V,
+    out_stride: usize,
+    flags: u32,
+    by: (S, M),
+) -> sahkd_status
+where
+    S: Fn(&T, Vec3, InsideTest) -> V + Sync,
+    M: FnOnce(&T, &[Vec3], InsideTest) -> Vec<V>,
+{
+    on(handle, |t| {
+        let test = inside(test)?;
+        let single = |p| by.0(t, p, test);
+        let many = |ps: &[Vec3]| by.1(t, ps, test);
+        point_query(points, out, out_stride, flags, single, many)
+    })
+}
+
 // ---- Trees -------------------------------------------------------------------------------
 
 /// The closest hit of one ray.
@@ -430,7 +530,7 @@ pub unsafe extern "C" fn sahkd_tree_intersect(
     ray: *const sahkd_ray,
     hit: *mut sahkd_hit,
 ) -> sahkd_status {
-    guard(|| intersect_one(get(tree, "tree")?, ray, hit))
+    one_ray_query(tree, ray, hit, "hit", Target::closest)
 }
 
 /// Whether one ray hits anything in [t_min, t_max] (stops at the first hit found).
@@ -440,7 +540,7 @@ pub unsafe extern "C" fn sahkd_tree_occluded(
     ray: *const sahkd_ray,
     occluded: *mut bool,
 ) -> sahkd_status {
-    guard(|| occluded_one(get(tree, "tree")?, ray, occluded))
+    one_ray_query(tree, ray, occluded, "occluded", Target::any)
 }
 
 /// Closest hits of `count` rays, `ray_stride` bytes apart (0: packed), into `hits`,
@@ -455,17 +555,9 @@ pub unsafe extern "C" fn sahkd_tree_intersect_aos(
     hit_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        intersect_aos(
-            get(tree, "tree")?,
-            rays,
-            count,
-            ray_stride,
-            hits,
-            hit_stride,
-            flags,
-        )
-    })
+    let rays = Rays::Aos(rays, count, ray_stride);
+    let out = Out(hits, hit_stride, "hits");
+    rays_query(tree, rays, out, flags, closest_many)
 }
 
 /// sahkd_tree_intersect_aos with rays and hits as separate arrays.
@@ -477,7 +569,7 @@ pub unsafe extern "C" fn sahkd_tree_intersect_soa(
     hits: *const sahkd_hits_soa,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| intersect_soa(get(tree, "tree")?, rays, count, hits, flags))
+    intersect_soa(tree, rays, count, hits, flags)
 }
 
 /// Any-hit answers of `count` rays into `occluded`, `occluded_stride` bytes apart (0: packed).
@@ -491,16 +583,9 @@ pub unsafe extern "C" fn sahkd_tree_occluded_aos(
     occluded_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        let t = get(tree, "tree")?;
-        occluded_many(
-            t,
-            aos_rays(rays, count, ray_stride)?,
-            occluded,
-            occluded_stride,
-            flags,
-        )
-    })
+    let rays = Rays::Aos(rays, count, ray_stride);
+    let out = Out(occluded, occluded_stride, "occluded");
+    rays_query(tree, rays, out, flags, any_many)
 }
 
 /// sahkd_tree_occluded_aos with the rays as separate arrays.
@@ -513,10 +598,9 @@ pub unsafe extern "C" fn sahkd_tree_occluded_soa(
     occluded_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        let t = get(tree, "tree")?;
-        occluded_many(t, soa_rays(rays, count)?, occluded, occluded_stride, flags)
-    })
+    let rays = Rays::Soa(rays, count);
+    let out = Out(occluded, occluded_stride, "occluded");
+    rays_query(tree, rays, out, flags, any_many)
 }
 
 /// Every triangle one ray hits in [t_min, t_max], each once, nearest first (ties to the
@@ -537,18 +621,9 @@ pub unsafe extern "C" fn sahkd_tree_all_hits(
         check_out(hits, capacity, 0, "hits")?;
         let found = t.tree.all_hits(&ray);
         *count = found.len();
-        let fits = found.len().min(capacity);
         let all = found.len();
-        write_all(
-            hits,
-            0,
-            found
-                .into_iter()
-                .take(fits)
-                .map(|h| tree_hit(Some(h)))
-                .collect(),
-            "hits",
-        )?;
+        let fits = found.into_iter().take(capacity).map(Into::into).collect();
+        write_all(hits, 0, fits, "hits")?;
         if all > capacity {
             return error(
                 sahkd_status::SAHKD_ERROR_BUFFER_TOO_SMALL,
@@ -577,25 +652,30 @@ pub unsafe extern "C" fn sahkd_tree_count_hits(
 /// Hit counts of `rays` into `counts` (shared by the array-of-structures and the
 /// structure-of-arrays call).
 unsafe fn count_hits_many(
-    t: &KdTree,
-    rays: Vec<Ray>,
+    tree: *const sahkd_tree,
+    rays: Rays,
     counts: *mut u32,
     counts_stride: usize,
-    parallel: bool,
-) -> Result<()> {
-    check_out(counts, rays.len(), counts_stride, "counts")?;
-    // One hit buffer per worker, reused from ray to ray, as Python's count_hits does.
-    let one = |buf: &mut Vec<Hit>, r: &Ray| {
-        t.all_hits_into(r, buf);
-        buf.len() as u32
-    };
-    let found = if parallel {
-        rays.par_iter().map_init(Vec::new, one).collect()
-    } else {
-        let mut buf = Vec::new();
-        rays.iter().map(|r| one(&mut buf, r)).collect()
-    };
-    write_all(counts, counts_stride, found, "counts")
+    flags: u32,
+) -> sahkd_status {
+    on(tree, |t| {
+        let t = &t.tree;
+        let parallel = parallel(flags)?;
+        let rays = rays.read()?;
+        check_out(counts, rays.len(), counts_stride, "counts")?;
+        // One hit buffer per worker, reused from ray to ray, as Python's count_hits does.
+        let one = |buf: &mut Vec<Hit>, r: &Ray| {
+            t.all_hits_into(r, buf);
+            buf.len() as u32
+        };
+        let found = if parallel {
+            rays.par_iter().map_init(Vec::new, one).collect()
+        } else {
+            let mut buf = Vec::new();
+            rays.iter().map(|r| one(&mut buf, r)).collect()
+        };
+        write_all(counts, counts_stride, found, "counts")
+    })
 }
 
 /// sahkd_tree_count_hits for `count` rays, into `counts`, `counts_stride` bytes apart.
@@ -609,12 +689,8 @@ pub unsafe extern "C" fn sahkd_tree_count_hits_aos(
     counts_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        let t = &get(tree, "tree")?.tree;
-        let parallel = parallel(flags)?;
-        let rays = aos_rays(rays, count, ray_stride)?;
-        count_hits_many(t, rays, counts, counts_stride, parallel)
-    })
+    let rays = Rays::Aos(rays, count, ray_stride);
+    count_hits_many(tree, rays, counts, counts_stride, flags)
 }
 
 /// sahkd_tree_count_hits_aos with the rays as separate arrays.
@@ -627,58 +703,55 @@ pub unsafe extern "C" fn sahkd_tree_count_hits_soa(
     counts_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        let t = &get(tree, "tree")?.tree;
-        let parallel = parallel(flags)?;
-        let rays = soa_rays(rays, count)?;
-        count_hits_many(t, rays, counts, counts_stride, parallel)
-    })
+    count_hits_many(tree, Rays::Soa(rays, count), counts, counts_stride, flags)
 }
 
 /// Every hit of `rays`, flattened with offsets (shared by the array-of-structures and the
 /// structure-of-arrays call).
 #[allow(clippy::too_many_arguments)]
 unsafe fn all_hits_many(
-    t: &KdTree,
-    rays: Vec<Ray>,
+    tree: *const sahkd_tree,
+    rays: Rays,
     hits: *mut sahkd_hit,
     capacity: usize,
     offsets: *mut usize,
     total: *mut usize,
-    parallel: bool,
-) -> Result<()> {
-    let count = rays.len();
-    let Some(ends) = count.checked_add(1) else {
-        return invalid("count + 1 offsets overflow");
-    };
-    check_out(offsets, ends, 0, "offsets")?;
-    check_out(hits, capacity, 0, "hits")?;
-    let found: Vec<Vec<Hit>> = if parallel {
-        rays.par_iter().map(|r| t.all_hits(r)).collect()
-    } else {
-        rays.iter().map(|r| t.all_hits(r)).collect()
-    };
-    let mut at = 0usize;
-    let mut ends = Vec::with_capacity(count + 1);
-    ends.push(0);
-    for f in &found {
-        at += f.len();
-        ends.push(at);
-    }
-    write_all(offsets, 0, ends, "offsets")?;
-    *total = at;
-    if at > capacity {
-        return error(
-            sahkd_status::SAHKD_ERROR_BUFFER_TOO_SMALL,
-            format!("the rays hit {at} triangles in all; hits holds {capacity}"),
-        );
-    }
-    let flat = found
-        .into_iter()
-        .flatten()
-        .map(|h| tree_hit(Some(h)))
-        .collect();
-    write_all(hits, 0, flat, "hits")
+    flags: u32,
+) -> sahkd_status {
+    guard(|| {
+        put(total, 0, "total")?;
+        let t = &get(tree, "tree")?.tree;
+        let parallel = parallel(flags)?;
+        let rays = rays.read()?;
+        let count = rays.len();
+        let Some(ends) = count.checked_add(1) else {
+            return invalid("count + 1 offsets overflow");
+        };
+        check_out(offsets, ends, 0, "offsets")?;
+        check_out(hits, capacity, 0, "hits")?;
+        let found: Vec<Vec<Hit>> = if parallel {
+            rays.par_iter().map(|r| t.all_hits(r)).collect()
+        } else {
+            rays.iter().map(|r| t.all_hits(r)).collect()
+        };
+        let mut at = 0usize;
+        let mut ends = Vec::with_capacity(count + 1);
+        ends.push(0);
+        for f in &found {
+            at += f.len();
+            ends.push(at);
+        }
+        write_all(offsets, 0, ends, "offsets")?;
+        *total = at;
+        if at > capacity {
+            return error(
+                sahkd_status::SAHKD_ERROR_BUFFER_TOO_SMALL,
+                format!("the rays hit {at} triangles in all; hits holds {capacity}"),
+            );
+        }
+        let flat = found.into_iter().flatten().map(Into::into).collect();
+        write_all(hits, 0, flat, "hits")
+    })
 }
 
 /// Every hit of `count` rays: the hits of ray i are hits[offsets[i]] up to
@@ -697,13 +770,8 @@ pub unsafe extern "C" fn sahkd_tree_all_hits_aos(
     total: *mut usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        put(total, 0, "total")?;
-        let t = &get(tree, "tree")?.tree;
-        let parallel = parallel(flags)?;
-        let rays = aos_rays(rays, count, ray_stride)?;
-        all_hits_many(t, rays, hits, capacity, offsets, total, parallel)
-    })
+    let rays = Rays::Aos(rays, count, ray_stride);
+    all_hits_many(tree, rays, hits, capacity, offsets, total, flags)
 }
 
 /// sahkd_tree_all_hits_aos with the rays as separate arrays.
@@ -718,13 +786,8 @@ pub unsafe extern "C" fn sahkd_tree_all_hits_soa(
     total: *mut usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        put(total, 0, "total")?;
-        let t = &get(tree, "tree")?.tree;
-        let parallel = parallel(flags)?;
-        let rays = soa_rays(rays, count)?;
-        all_hits_many(t, rays, hits, capacity, offsets, total, parallel)
-    })
+    let rays = Rays::Soa(rays, count);
+    all_hits_many(tree, rays, hits, capacity, offsets, total, flags)
 }
 
 /// Closest points of the mesh to `count` points (3 floats each, `point_stride` bytes apart,
@@ -739,17 +802,8 @@ pub unsafe extern "C" fn sahkd_tree_closest_point(
     out_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        closest_point(
-            get(tree, "tree")?,
-            points,
-            count,
-            point_stride,
-            out,
-            out_stride,
-            flags,
-        )
-    })
+    let points = Points(points, count, point_stride);
+    closest_point(tree, points, out, out_stride, flags)
 }
 
 /// Distances from `count` points to the mesh (infinite for an empty mesh).
@@ -763,17 +817,8 @@ pub unsafe extern "C" fn sahkd_tree_distance(
     out_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        distance(
-            get(tree, "tree")?,
-            points,
-            count,
-            point_stride,
-            out,
-            out_stride,
-            flags,
-        )
-    })
+    let points = Points(points, count, point_stride);
+    distance(tree, points, out, out_stride, flags)
 }
 
 /// Distances, negative inside, by the inside test SAHKD_INSIDE_PARITY or
@@ -789,19 +834,9 @@ pub unsafe extern "C" fn sahkd_tree_signed_distance(
     out_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        let t = get(tree, "tree")?;
-        signed_distance(
-            t,
-            points,
-            count,
-            point_stride,
-            inside_test,
-            out,
-            out_stride,
-            flags,
-        )
-    })
+    let points = Points(points, count, point_stride);
+    let by = (Target::signed_distance, Target::signed_distance_many);
+    inside_query(tree, points, inside_test, out, out_stride, flags, by)
 }
 
 /// Whether each point is inside the mesh, by the inside test given.
@@ -816,19 +851,9 @@ pub unsafe extern "C" fn sahkd_tree_contains(
     out_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        let t = get(tree, "tree")?;
-        contains(
-            t,
-            points,
-            count,
-            point_stride,
-            inside_test,
-            out,
-            out_stride,
-            flags,
-        )
-    })
+    let points = Points(points, count, point_stride);
+    let by = (Target::contains, Target::contains_many);
+    inside_query(tree, points, inside_test, out, out_stride, flags, by)
 }
 
 /// The generalized winding number of the mesh around each point (1 inside, 0 outside a
@@ -843,20 +868,14 @@ pub unsafe extern "C" fn sahkd_tree_winding_number(
     out_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        let t = &get(tree, "tree")?.tree;
-        let single = |p| t.winding_number(p);
-        let many = |ps: &[Vec3]| t.winding_number_batch(ps);
-        point_query(
-            points,
-            count,
-            point_stride,
-            out,
-            out_stride,
-            flags,
-            single,
-            many,
-        )
+    on(tree, |t| {
+        let t = &t.tree;
+        let (single, many) = (
+            |p| t.winding_number(p),
+            |ps: &[Vec3]| t.winding_number_batch(ps),
+        );
+        let points = Points(points, count, point_stride);
+        point_query(points, out, out_stride, flags, single, many)
     })
 }
 
@@ -869,7 +888,7 @@ pub unsafe extern "C" fn sahkd_scene_tree_intersect(
     ray: *const sahkd_ray,
     hit: *mut sahkd_hit,
 ) -> sahkd_status {
-    guard(|| intersect_one(get(scene, "scene")?, ray, hit))
+    one_ray_query(scene, ray, hit, "hit", Target::closest)
 }
 
 /// Whether one ray hits any geometry of the scene.
@@ -879,7 +898,7 @@ pub unsafe extern "C" fn sahkd_scene_tree_occluded(
     ray: *const sahkd_ray,
     occluded: *mut bool,
 ) -> sahkd_status {
-    guard(|| occluded_one(get(scene, "scene")?, ray, occluded))
+    one_ray_query(scene, ray, occluded, "occluded", Target::any)
 }
 
 /// sahkd_tree_intersect_aos for a scene.
@@ -893,17 +912,9 @@ pub unsafe extern "C" fn sahkd_scene_tree_intersect_aos(
     hit_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        intersect_aos(
-            get(scene, "scene")?,
-            rays,
-            count,
-            ray_stride,
-            hits,
-            hit_stride,
-            flags,
-        )
-    })
+    let rays = Rays::Aos(rays, count, ray_stride);
+    let out = Out(hits, hit_stride, "hits");
+    rays_query(scene, rays, out, flags, closest_many)
 }
 
 /// sahkd_tree_intersect_soa for a scene.
@@ -915,7 +926,7 @@ pub unsafe extern "C" fn sahkd_scene_tree_intersect_soa(
     hits: *const sahkd_hits_soa,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| intersect_soa(get(scene, "scene")?, rays, count, hits, flags))
+    intersect_soa(scene, rays, count, hits, flags)
 }
 
 /// sahkd_tree_occluded_aos for a scene.
@@ -929,16 +940,9 @@ pub unsafe extern "C" fn sahkd_scene_tree_occluded_aos(
     occluded_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        let s = get(scene, "scene")?;
-        occluded_many(
-            s,
-            aos_rays(rays, count, ray_stride)?,
-            occluded,
-            occluded_stride,
-            flags,
-        )
-    })
+    let rays = Rays::Aos(rays, count, ray_stride);
+    let out = Out(occluded, occluded_stride, "occluded");
+    rays_query(scene, rays, out, flags, any_many)
 }
 
 /// sahkd_tree_occluded_soa for a scene.
@@ -951,10 +955,9 @@ pub unsafe extern "C" fn sahkd_scene_tree_occluded_soa(
     occluded_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        let s = get(scene, "scene")?;
-        occluded_many(s, soa_rays(rays, count)?, occluded, occluded_stride, flags)
-    })
+    let rays = Rays::Soa(rays, count);
+    let out = Out(occluded, occluded_stride, "occluded");
+    rays_query(scene, rays, out, flags, any_many)
 }
 
 /// sahkd_tree_closest_point over every geometry (ties to the lower geometry id).
@@ -968,17 +971,8 @@ pub unsafe extern "C" fn sahkd_scene_tree_closest_point(
     out_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        closest_point(
-            get(scene, "scene")?,
-            points,
-            count,
-            point_stride,
-            out,
-            out_stride,
-            flags,
-        )
-    })
+    let points = Points(points, count, point_stride);
+    closest_point(scene, points, out, out_stride, flags)
 }
 
 /// Distances from each point to the nearest geometry.
@@ -992,17 +986,8 @@ pub unsafe extern "C" fn sahkd_scene_tree_distance(
     out_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        distance(
-            get(scene, "scene")?,
-            points,
-            count,
-            point_stride,
-            out,
-            out_stride,
-            flags,
-        )
-    })
+    let points = Points(points, count, point_stride);
+    distance(scene, points, out, out_stride, flags)
 }
 
 /// Distances, negative inside any geometry (each judged alone).
@@ -1017,19 +1002,9 @@ pub unsafe extern "C" fn sahkd_scene_tree_signed_distance(
     out_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        let s = get(scene, "scene")?;
-        signed_distance(
-            s,
-            points,
-            count,
-            point_stride,
-            inside_test,
-            out,
-            out_stride,
-            flags,
-        )
-    })
+    let points = Points(points, count, point_stride);
+    let by = (Target::signed_distance, Target::signed_distance_many);
+    inside_query(scene, points, inside_test, out, out_stride, flags, by)
 }
 
 /// Whether each point is inside any geometry.
@@ -1044,119 +1019,7 @@ pub unsafe extern "C" fn sahkd_scene_tree_contains(
     out_stride: usize,
     flags: u32,
 ) -> sahkd_status {
-    guard(|| {
-        let s = get(scene, "scene")?;
-        contains(
-            s,
-            points,
-            count,
-            point_stride,
-            inside_test,
-            out,
-            out_stride,
-            flags,
-        )
-    })
-}
-
-// ---- The bodies both share ---------------------------------------------------------------
-
-unsafe fn intersect_aos(
-    t: &impl Target,
-    rays: *const sahkd_ray,
-    count: usize,
-    ray_stride: usize,
-    hits: *mut sahkd_hit,
-    hit_stride: usize,
-    flags: u32,
-) -> Result<()> {
-    let parallel = parallel(flags)?;
-    let rays = aos_rays(rays, count, ray_stride)?;
-    check_out(hits, count, hit_stride, "hits")?;
-    write_all(hits, hit_stride, t.closest_many(&rays, parallel), "hits")
-}
-
-unsafe fn intersect_soa(
-    t: &impl Target,
-    rays: *const sahkd_rays_soa,
-    count: usize,
-    hits: *const sahkd_hits_soa,
-    flags: u32,
-) -> Result<()> {
-    let parallel = parallel(flags)?;
-    let rays = soa_rays(rays, count)?;
-    get(hits, "hits")?;
-    write_hits_soa(hits, t.closest_many(&rays, parallel))
-}
-
-unsafe fn occluded_many(
-    t: &impl Target,
-    rays: Vec<Ray>,
-    out: *mut bool,
-    stride: usize,
-    flags: u32,
-) -> Result<()> {
-    let parallel = parallel(flags)?;
-    check_out(out, rays.len(), stride, "occluded")?;
-    write_all(out, stride, t.any_many(&rays, parallel), "occluded")
-}
-
-unsafe fn closest_point(
-    t: &impl Target,
-    p: *const f32,
-    count: usize,
-    stride: usize,
-    out: *mut sahkd_closest,
-    out_stride: usize,
-    flags: u32,
-) -> Result<()> {
-    let (single, many) = (|p| t.nearest(p), |ps: &[Vec3]| t.nearest_many(ps));
-    point_query(p, count, stride, out, out_stride, flags, single, many)
-}
-
-unsafe fn distance(
-    t: &impl Target,
-    p: *const f32,
-    count: usize,
-    stride: usize,
-    out: *mut f64,
-    out_stride: usize,
-    flags: u32,
-) -> Result<()> {
-    let (single, many) = (|p| t.distance(p), |ps: &[Vec3]| t.distance_many(ps));
-    point_query(p, count, stride, out, out_stride, flags, single, many)
-}
-
-#[allow(clippy::too_many_arguments)]
-unsafe fn signed_distance(
-    t: &impl Target,
-    p: *const f32,
-    count: usize,
-    stride: usize,
-    test: u32,
-    out: *mut f64,
-    out_stride: usize,
-    flags: u32,
-) -> Result<()> {
-    let test = inside(test)?;
-    let single = |p| t.signed_distance(p, test);
-    let many = |ps: &[Vec3]| t.signed_distance_many(ps, test);
-    point_query(p, count, stride, out, out_stride, flags, single, many)
-}
-
-#[allow(clippy::too_many_arguments)]
-unsafe fn contains(
-    t: &impl Target,
-    p: *const f32,
-    count: usize,
-    stride: usize,
-    test: u32,
-    out: *mut bool,
-    out_stride: usize,
-    flags: u32,
-) -> Result<()> {
-    let test = inside(test)?;
-    let single = |p| t.contains(p, test);
-    let many = |ps: &[Vec3]| t.contains_many(ps, test);
-    point_query(p, count, stride, out, out_stride, flags, single, many)
+    let points = Points(points, count, point_stride);
+    let by = (Target::contains, Target::contains_many);
+    inside_query(scene, points, inside_test, out, out_stride, flags, by)
 }
