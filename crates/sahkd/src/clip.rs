@@ -5,6 +5,7 @@
 //! earlier clipped polygon), so every builder that clips gets bit-identical boxes.
 
 use crate::geometry::{Aabb, Triangle, Vec3};
+use std::mem::MaybeUninit;
 
 /// At most 3 + 6 vertices survive clipping a triangle by six planes.
 const MAX_VERTS: usize = 9;
@@ -14,11 +15,11 @@ const MAX_VERTS: usize = 9;
 /// is +0 (which zero a `min` of -0 and +0 keeps is up to the compiler, and the GPU's clip must
 /// give the same bits).
 pub fn clipped_bounds(tri: &Triangle, b: &Aabb) -> Aabb {
-    let mut poly = Polygon::of(tri);
-    if poly.clip_to_axes(b, 0..3) {
-        poly.bounds(b)
-    } else {
-        Aabb::EMPTY
+    let start = Polygon::of(tri);
+    let mut scratch = Polygon::scratch();
+    match clip_to_axes(&start, b, 0..3, &mut scratch) {
+        Some(poly) => poly.bounds(b),
+        None => Aabb::EMPTY,
     }
 }
 
@@ -28,83 +29,167 @@ pub fn clipped_bounds(tri: &Triangle, b: &Aabb) -> Aabb {
 /// the polygon they leave is cut on by each half's remaining planes.
 pub fn clipped_halves(tri: &Triangle, node: &Aabb, axis: usize, pos: f32) -> (Aabb, Aabb) {
     let (left, right) = node.split(axis, pos);
-    let mut shared = Polygon::of(tri);
-    if !shared.clip_to_axes(node, 0..axis) {
+    let start = Polygon::of(tri);
+    let mut scratch = Polygon::scratch();
+    let Some(shared) = clip_to_axes(&start, node, 0..axis, &mut scratch) else {
         return (Aabb::EMPTY, Aabb::EMPTY);
-    }
+    };
     let half = |b: &Aabb| {
-        let mut poly = shared.clone();
-        if poly.clip_to_axes(b, axis..3) {
-            poly.bounds(b)
-        } else {
-            Aabb::EMPTY
+        let mut scratch = Polygon::scratch();
+        match clip_to_axes(shared, b, axis..3, &mut scratch) {
+            Some(poly) => poly.bounds(b),
+            None => Aabb::EMPTY,
         }
     };
     (half(&left), half(&right))
 }
 
-/// A convex polygon being clipped plane by plane, in f64: two vertex buffers used in turn,
-/// so that no plane copies a whole polygon.
-#[derive(Clone)]
+/// A convex polygon in f64 with the exact bounds of its vertices, which decide whether a
+/// plane cuts it at all and are its clipped box at the end. Only `verts[..n]` is written:
+/// the buffers are not zeroed, as a clip makes three of them per triangle and most planes
+/// cut nothing.
 struct Polygon {
-    bufs: [[[f64; 3]; MAX_VERTS]; 2],
-    /// The buffer holding the polygon, and its vertex count.
-    cur: usize,
+    verts: [MaybeUninit<[f64; 3]>; MAX_VERTS],
     n: usize,
+    lo: [f64; 3],
+    hi: [f64; 3],
+}
+
+/// `start` cut by the low then the high plane of `b` on each of `axes`, in order: `start`
+/// itself when no plane cuts it, else one of the two `scratch` polygons, which the cuts
+/// write in turn (so that no plane copies a whole polygon); `None` once nothing is left.
+fn clip_to_axes<'a>(
+    start: &'a Polygon,
+    b: &Aabb,
+    axes: std::ops::Range<usize>,
+    scratch: &'a mut [Polygon; 2],
+) -> Option<&'a Polygon> {
+    // Which scratch polygon holds the result so far; none while it is `start`.
+    let mut cur: Option<usize> = None;
+    for axis in axes {
+        if !plane::<false>(start, scratch, &mut cur, axis, b.lo[axis] as f64)
+            || !plane::<true>(start, scratch, &mut cur, axis, b.hi[axis] as f64)
+        {
+            return None;
+        }
+    }
+    Some(match cur {
+        None => start,
+        Some(i) => &scratch[i],
+    })
+}
+
+/// One plane of [`clip_to_axes`]: keeps the part of the polygon so far (`start`, or
+/// `scratch[cur]`) on the inner side of `axis = bound` (below it with `KEEP_BELOW`); false
+/// when nothing is left.
+#[inline(always)]
+fn plane<const KEEP_BELOW: bool>(
+    start: &Polygon,
+    scratch: &mut [Polygon; 2],
+    cur: &mut Option<usize>,
+    axis: usize,
+    bound: f64,
+) -> bool {
+    let [first, second] = scratch;
+    let (src, dst, to) = match *cur {
+        None => (start, first, 0),
+        Some(0) => (&*first, second, 1),
+        Some(_) => (&*second, first, 0),
+    };
+    // A plane that cuts nothing leaves the polygon as it is: skip it. The bounds are the
+    // vertices' extremes, so this is "every vertex inside".
+    let uncut = if KEEP_BELOW {
+        src.hi[axis] <= bound
+    } else {
+        src.lo[axis] >= bound
+    };
+    if uncut {
+        return true;
+    }
+    *cur = Some(to);
+    dst.cut::<KEEP_BELOW>(src, axis, bound)
 }
 
 impl Polygon {
-    fn of(tri: &Triangle) -> Polygon {
-        let mut bufs = [[[0f64; 3]; MAX_VERTS]; 2];
-        for (k, v) in tri.iter().enumerate() {
-            bufs[0][k] = v.0.map(|c| c as f64);
-        }
-        Polygon { bufs, cur: 0, n: 3 }
+    /// Two polygons to clip into. Made at run time, not copied from a constant: a constant
+    /// is copied whole, its unwritten vertices as zeros.
+    #[inline(always)]
+    fn scratch() -> [Polygon; 2] {
+        [Polygon::blank(), Polygon::blank()]
     }
 
-    /// Cuts by the low then the high plane of `b` on each of `axes`, in order; false once
-    /// nothing is left.
-    fn clip_to_axes(&mut self, b: &Aabb, axes: std::ops::Range<usize>) -> bool {
-        for axis in axes {
-            for (bound, keep_below) in [(b.lo[axis] as f64, false), (b.hi[axis] as f64, true)] {
-                if !self.clip(axis, bound, keep_below) {
-                    return false;
+    #[inline(always)]
+    fn blank() -> Polygon {
+        Polygon {
+            verts: [const { MaybeUninit::uninit() }; MAX_VERTS],
+            n: 0,
+            lo: [0.0; 3],
+            hi: [0.0; 3],
+        }
+    }
+
+    #[inline(always)]
+    fn of(tri: &Triangle) -> Polygon {
+        let mut poly = Polygon::blank();
+        for (k, v) in tri.iter().enumerate() {
+            poly.verts[k].write(v.0.map(|c| c as f64));
+        }
+        poly.n = 3;
+        poly.measure();
+        poly
+    }
+
+    /// The vertices.
+    #[inline(always)]
+    fn verts(&self) -> &[[f64; 3]] {
+        debug_assert!(self.n <= MAX_VERTS);
+        // SAFETY: every writer of `n` has written `verts[..n]` first; MaybeUninit<T> has the
+        // layout of T.
+        unsafe { std::slice::from_raw_parts(self.verts.as_ptr().cast(), self.n) }
+    }
+
+    /// Sets `lo` and `hi` to the extremes of the (at least one) vertices. Compared, not
+    /// `f64::min`: the values are finite, and a -0 kept for a +0 is made +0 by `bounds`.
+    #[inline(always)]
+    fn measure(&mut self) {
+        let verts = self.verts();
+        let (mut lo, mut hi) = (verts[0], verts[0]);
+        for p in &verts[1..] {
+            for a in 0..3 {
+                if p[a] < lo[a] {
+                    lo[a] = p[a];
+                }
+                if p[a] > hi[a] {
+                    hi[a] = p[a];
                 }
             }
         }
-        true
+        (self.lo, self.hi) = (lo, hi);
     }
 
-    /// Keeps the part on the inner side of the plane `axis = bound` (below it with
-    /// `keep_below`); false when nothing is left.
+    /// Becomes the part of `src` on the inner side of the plane `axis = bound` (below it
+    /// with `KEEP_BELOW`); false when nothing is left.
     #[inline(always)]
-    fn clip(&mut self, axis: usize, bound: f64, keep_below: bool) -> bool {
+    fn cut<const KEEP_BELOW: bool>(&mut self, src: &Polygon, axis: usize, bound: f64) -> bool {
         let inside = |p: &[f64; 3]| {
-            if keep_below {
+            if KEEP_BELOW {
                 p[axis] <= bound
             } else {
                 p[axis] >= bound
             }
         };
-        let (cur, n) = (self.cur, self.n);
-        // A plane that cuts nothing leaves the polygon as it is: skip it.
-        if self.bufs[cur][..n].iter().all(inside) {
-            return true;
-        }
-        let (first, second) = self.bufs.split_at_mut(1);
-        let (poly, next) = if cur == 0 {
-            (&first[0], &mut second[0])
-        } else {
-            (&second[0], &mut first[0])
-        };
+        let poly = src.verts();
+        let n = poly.len();
         let mut m = 0;
+        let mut pin = inside(&poly[0]);
         for i in 0..n {
-            let (p, q) = (&poly[i], &poly[if i + 1 == n { 0 } else { i + 1 }]);
-            let (pin, qin) = (inside(p), inside(q));
+            let p = &poly[i];
+            let q = &poly[if i + 1 == n { 0 } else { i + 1 }];
+            let qin = inside(q);
             // Rounding can bend a clipped polygon very slightly; the caps keep a pathological
             // one inside the buffers (as the GPU's clip does) instead of panicking.
             if pin && m < MAX_VERTS {
-                next[m] = *p;
+                self.verts[m].write(*p);
                 m += 1;
             }
             if pin != qin && m < MAX_VERTS {
@@ -114,26 +199,22 @@ impl Polygon {
                     x[a] = p[a] + t * (q[a] - p[a]);
                 }
                 x[axis] = bound;
-                next[m] = x;
+                self.verts[m].write(x);
                 m += 1;
             }
+            pin = qin;
         }
         self.n = m;
-        self.cur = 1 - cur;
+        if m > 0 {
+            self.measure();
+        }
         m > 0
     }
 
     /// The polygon's bounds rounded outwards to f32 and limited to `b`, zeros as +0.
     fn bounds(&self, b: &Aabb) -> Aabb {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in &self.bufs[self.cur][..self.n] {
-            for a in 0..3 {
-                lo[a] = lo[a].min(p[a]);
-                hi[a] = hi[a].max(p[a]);
-            }
-        }
-        let out = Aabb::new(Vec3(lo.map(round_down)), Vec3(hi.map(round_up))).intersection(*b);
+        let out =
+            Aabb::new(Vec3(self.lo.map(round_down)), Vec3(self.hi.map(round_up))).intersection(*b);
         // x + 0.0 is x, except that -0 becomes +0.
         Aabb::new(
             Vec3(out.lo.0.map(|x| x + 0.0)),
