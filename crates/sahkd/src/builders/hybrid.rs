@@ -22,11 +22,12 @@
 //! The binned sweep builds the tree instead, the two children of each binned node at once
 //! (`sweep::build_binned_parallel`): the tree of `sweep` with the same bins, on every core.
 
+use super::choice::searched;
+use super::driver::{Budget, BudgetUse};
 use super::level;
 use super::stitch::{self, Piece};
-use super::sweep::{self, Subtree, SubtreeReport};
+use super::sweep::{self, Handed, Start, SubtreeReport};
 use super::{BuildOptions, BuiltTree, Primitives};
-use crate::geometry::Triangle;
 use crate::tree::Node;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -59,7 +60,7 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
             hand_off(threads, nodes, refs, biggest)
         });
     let budget = options.cost.reference_budget(prims.triangles.len());
-    let the_sweeps = |budget_use: level::BudgetUse, refs: usize| {
+    let the_sweeps = |budget_use: BudgetUse, refs: usize| {
         !budget_use.bound && refs + budget_use.clipped_away <= budget
     };
     let Some(frontier) = frontier else {
@@ -87,7 +88,7 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
     let build_one = |k: usize| {
         let node = frontier.node(k);
         let n = node.prims.len();
-        if n as u32 <= options.cost.leaf_size || node.depth >= max_depth {
+        if !searched(n as u32, node.depth, max_depth, &options.cost) {
             // A leaf by the leaf rules: the level passes made no lists for it.
             let piece = Piece {
                 nodes: vec![Node::leaf(0, n as u32)],
@@ -95,33 +96,17 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
             };
             return (k, piece, None);
         }
-        let triangles: Vec<Triangle> = node
-            .prims
-            .iter()
-            .map(|&p| prims.triangles[p as usize])
-            .collect();
-        let subtree = Subtree {
-            triangles: &triangles,
+        let handed = Handed {
+            prims: node.prims,
             bounds: node.bounds,
             depth: node.depth,
-            max_depth,
-            budget,
-            shared_total: Some(&shared_total),
+            start: Start::Sorted(node.events),
         };
-        let mut piece = Piece {
-            nodes: Vec::new(),
-            refs: Vec::new(),
+        let budget = Budget {
+            limit: budget,
+            shared: Some(&shared_total),
         };
-        let report = sweep::build_subtree_sorted(
-            &subtree,
-            node.events,
-            options,
-            &mut piece.nodes,
-            &mut piece.refs,
-        );
-        for r in piece.refs.iter_mut() {
-            *r = node.prims[*r as usize];
-        }
+        let (piece, report) = sweep::handed_subtree(handed, prims.triangles, budget, options);
         (k, piece, Some(report))
     };
     let next = AtomicUsize::new(0);
@@ -144,8 +129,7 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
     let mut subtree_peak = 0;
     for report in pieces.iter().filter_map(|p| p.2.as_ref()) {
         subtree_peak = subtree_peak.max(report.peak_working_bytes);
-        budget_use.bound |= report.budget_bound;
-        budget_use.clipped_away += report.clipped_away;
+        budget_use = budget_use.add(report.budget);
     }
     let pieces: Vec<Piece> = pieces.into_iter().map(|p| p.1).collect();
     drop(frontier);

@@ -20,8 +20,9 @@
 //! scene box is the triangles' own box.
 
 use super::choice::{split_or_leaf, Split};
+use super::driver::Budget;
 use super::stitch::{self, Piece};
-use super::sweep::{self, Subtree};
+use super::sweep::{self, Handed, Start};
 use super::{BuildOptions, BuiltTree, LevelReport, Primitives};
 use crate::clip::clipped_bounds;
 use crate::cost::CostModel;
@@ -111,7 +112,6 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
         prims.triangles,
         large.small,
         options,
-        limits.max_depth,
         limits.budget.saturating_sub(large.references),
         &mut built,
     );
@@ -452,7 +452,6 @@ fn build_small_nodes(
     triangles: &[Triangle],
     small: Vec<Pending>,
     options: &BuildOptions,
-    max_depth: u32,
     slack: usize,
     built: &mut BuiltTree,
 ) {
@@ -461,27 +460,20 @@ fn build_small_nodes(
         .par_iter()
         .map(|node| {
             let n = node.items.len();
-            let tris: Vec<Triangle> = node
-                .items
-                .iter()
-                .map(|it| triangles[it.id as usize])
-                .collect();
+            let ids: Vec<u32> = node.items.iter().map(|it| it.id).collect();
             let boxes: Vec<Aabb> = node.items.iter().map(|it| it.bounds).collect();
             let share = (slack as u128 * n as u128 / small_prims.max(1) as u128) as usize;
-            let subtree = Subtree {
-                triangles: &tris,
+            let handed = Handed {
+                prims: &ids,
                 bounds: node.bounds,
                 depth: node.depth,
-                max_depth,
-                budget: n + share,
-                shared_total: None,
+                start: Start::Boxes(&boxes),
             };
-            let (mut nodes, mut refs) = (Vec::new(), Vec::new());
-            sweep::build_subtree(&subtree, &boxes, options, &mut nodes, &mut refs);
-            for r in refs.iter_mut() {
-                *r = node.items[*r as usize].id;
-            }
-            Piece { nodes, refs }
+            let budget = Budget {
+                limit: n + share,
+                shared: None,
+            };
+            sweep::handed_subtree(handed, triangles, budget, options).0
         })
         .collect();
     for (node, piece) in small.iter().zip(&pieces) {

@@ -5,6 +5,7 @@
 //! the builder, runs it on a thread pool of the requested size, and times it.
 
 mod choice;
+mod driver;
 mod event;
 mod hybrid;
 mod level;

@@ -14,13 +14,16 @@ pub(crate) struct Piece {
 /// Places `piece` under the tree's slot `slot` (a placeholder): its root takes the slot, its
 /// other nodes are appended, its references follow the tree's.
 pub(crate) fn place(built: &mut BuiltTree, slot: usize, piece: &Piece) {
-    let base = built.nodes.len() as u32;
-    let ref_base = built.refs.len() as u32;
-    built.nodes[slot] = relocate(&piece.nodes[0], base, ref_base);
-    built
-        .nodes
-        .extend(piece.nodes[1..].iter().map(|n| relocate(n, base, ref_base)));
-    built.refs.extend_from_slice(&piece.refs);
+    place_at(&mut built.nodes, &mut built.refs, slot, piece);
+}
+
+/// [`place`] into a tree's two arrays.
+pub(crate) fn place_at(nodes: &mut Vec<Node>, refs: &mut Vec<u32>, slot: usize, piece: &Piece) {
+    let base = nodes.len() as u32;
+    let ref_base = refs.len() as u32;
+    nodes[slot] = relocate(&piece.nodes[0], base, ref_base);
+    nodes.extend(piece.nodes[1..].iter().map(|n| relocate(n, base, ref_base)));
+    refs.extend_from_slice(&piece.refs);
 }
 
 /// The tree whose top is `top` (nodes below `first_slot` built there; each slot from

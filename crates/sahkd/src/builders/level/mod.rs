@@ -45,6 +45,7 @@ mod space_tree;
 pub(crate) use handoff::Frontier;
 
 use super::choice::{searched, Split};
+use super::driver::BudgetUse;
 use super::{Algorithm, Axes, BuildOptions, BuiltTree, Counting, LevelReport, Primitives};
 use crate::cost::CostModel;
 use crate::geometry::{Aabb, Triangle};
@@ -149,15 +150,6 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
         (_, Counting::SpaceTree) => run::<Span>(prims, options, Mode::SpaceTree, whole).0,
         (_, Counting::Scan) => run::<Event>(prims, options, Mode::Scan, whole).0,
     }
-}
-
-/// How the reference budget went in a build's level passes.
-#[derive(Clone, Copy, Debug, Default)]
-pub(crate) struct BudgetUse {
-    /// Whether the budget refused a split the SAH wanted.
-    pub bound: bool,
-    /// References clipping removed, summed over the splits (before minus after).
-    pub clipped_away: usize,
 }
 
 /// The top of a hybrid build: level passes (scan counting) until `hand_off` says a level's nodes are enough independent work, then that level as a

@@ -11,23 +11,24 @@
 //! event lists and no sort: the events are made and sorted per node once it is small enough
 //! for the sweep, which sorts `n log(threshold)` instead of `n log n` at the root.
 //!
-//! The tree is the one a depth-first build makes (the sweep's layout and reference budget);
-//! [`build`] runs it so on one worker, or with the two children of every binned node (and of
-//! the biggest exact ones, split here by the sweep's own search) built at once, which gives
-//! the same tree (see there).
+//! This is a search for the driver ([`BinnedTop`]), which hands its small nodes to the
+//! sweep. The tree is the one a depth-first build makes (the driver's layout and the sweep's
+//! reference budget); [`build`] runs it so on one worker (`driver::serial`), or with the two
+//! children of every binned node (and of the biggest exact ones, split here by the sweep's
+//! own search) built at once (`driver::fork_join`), which gives the same tree (see there).
 
 use super::search::{best_split_of_boxes, priced, Split};
-use super::{build_subtree, Subtree};
-use crate::builders::choice::split_or_leaf;
+use super::{handed_subtree, Handed, Start};
+use crate::builders::driver::{self, Budget, BudgetUse, Fork, Rules, SplitSearch};
 use crate::builders::options::BINNED_REFS_PER_BIN;
-use crate::builders::stitch::{self, Piece};
+use crate::builders::stitch::Piece;
 use crate::builders::{Axes, BuildOptions, BuiltTree, Primitives};
 use crate::clip::clipped_halves;
 use crate::cost::CostModel;
 use crate::geometry::{Aabb, Triangle};
 use crate::tree::Node;
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::AtomicUsize;
 use std::time::Instant;
 
 /// Nodes with more references than this get their histograms from parallel chunks (when
@@ -54,23 +55,9 @@ struct Refs {
     depth: u32,
 }
 
-/// The binned part of the tree, laid out at the end in the sweep's order.
-enum Top {
-    Leaf(Vec<u32>),
-    Split {
-        axis: usize,
-        pos: f32,
-        children: Box<[Top; 2]>,
-    },
-    /// A node small enough for the exact sweep, with its subtree.
-    Exact(Piece),
-}
-
 /// What a part of the build took, summed up the tree.
 #[derive(Default)]
 struct Tally {
-    budget_bound: bool,
-    clipped_away: usize,
     presort_ms: f64,
     /// Time spent pricing and partitioning binned nodes, and building exact subtrees (their
     /// presorts included), summed over the workers.
@@ -80,14 +67,11 @@ struct Tally {
 }
 
 impl Tally {
-    fn add(mut self, other: Tally) -> Tally {
-        self.budget_bound |= other.budget_bound;
-        self.clipped_away += other.clipped_away;
+    fn add(&mut self, other: Tally) {
         self.presort_ms += other.presort_ms;
         self.binned_ms += other.binned_ms;
         self.subtrees_ms += other.subtrees_ms;
         self.peak_working_bytes = self.peak_working_bytes.max(other.peak_working_bytes);
-        self
     }
 }
 
@@ -136,23 +120,48 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions, parallel: bool) 
 
 /// The build, or `None` when built in parallel and the budget may have decided differently.
 fn run(ctx: &Ctx, prims: &Primitives) -> Option<BuiltTree> {
+    let n = prims.triangles.len();
     let root = Refs {
-        ids: (0..prims.triangles.len() as u32).collect(),
+        ids: (0..n as u32).collect(),
         boxes: prims.boxes.clone(),
         bounds: prims.bounds,
         depth: 0,
     };
     let root_bytes = root.ids.len() * (4 + std::mem::size_of::<Aabb>());
-    let total = AtomicUsize::new(prims.triangles.len());
-    let (top, tally) = grow(ctx, root, &total);
-    let layout = Instant::now();
+    let rules = Rules {
+        cost: &ctx.options.cost,
+        max_depth: ctx.max_depth,
+    };
+    let mut top = BinnedTop {
+        ctx,
+        tally: Tally::default(),
+    };
     let mut built = BuiltTree::default();
-    built.nodes.push(Node::leaf(0, 0));
-    lay_out(top, &mut built, 0);
-    built.report.layout_ms = layout.elapsed().as_secs_f64() * 1e3;
-    if ctx.parallel && (tally.budget_bound || built.refs.len() + tally.clipped_away > ctx.budget) {
-        return None;
+    if ctx.parallel {
+        let total = AtomicUsize::new(n);
+        let (tree, used) = driver::fork_join(&mut top, root, rules, ctx.budget, &total);
+        let layout = Instant::now();
+        built.nodes.push(Node::leaf(0, 0));
+        driver::lay_out(tree, &mut built, 0);
+        built.report.layout_ms = layout.elapsed().as_secs_f64() * 1e3;
+        if used.bound || built.refs.len() + used.clipped_away > ctx.budget {
+            return None;
+        }
+    } else {
+        let budget = Budget {
+            limit: ctx.budget,
+            shared: None,
+        };
+        driver::serial(
+            &mut top,
+            root,
+            rules,
+            budget,
+            &mut built.nodes,
+            &mut built.refs,
+        );
     }
+    let tally = top.tally;
     built.report.presort_ms = tally.presort_ms;
     built.report.binned_ms = tally.binned_ms;
     built.report.subtrees_ms = tally.subtrees_ms;
@@ -161,19 +170,29 @@ fn run(ctx: &Ctx, prims: &Primitives) -> Option<BuiltTree> {
     Some(built)
 }
 
-/// The subtree of `node`.
-fn grow(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
-    let n = node.ids.len();
-    let binned = n > ctx.threshold;
-    let forked = ctx.parallel && n > ctx.fork_above;
-    if !(binned || forked) {
-        return exact(ctx, node, total);
+/// The binned top as the driver's search: nodes above the threshold priced at their bin
+/// boundaries; when building in parallel, nodes above `fork_above` by the sweep's own search
+/// (see `FORK_SHARE`); every other node handed over to the exact sweep.
+struct BinnedTop<'a> {
+    ctx: &'a Ctx<'a>,
+    tally: Tally,
+}
+
+impl SplitSearch for BinnedTop<'_> {
+    type Node = Refs;
+
+    fn size(node: &Refs) -> u32 {
+        node.ids.len() as u32
     }
-    let start = Instant::now();
-    let cost = &ctx.options.cost;
-    let mut tally = Tally::default();
-    let split = split_or_leaf(n as u32, node.depth, ctx.max_depth, cost, || {
-        if binned {
+
+    fn depth(node: &Refs) -> u32 {
+        node.depth
+    }
+
+    fn search(&mut self, node: &Refs) -> Option<Split> {
+        let start = Instant::now();
+        let (ctx, cost) = (self.ctx, &self.ctx.options.cost);
+        let split = if node.ids.len() > ctx.threshold {
             best_split(
                 &node.boxes,
                 &node.bounds,
@@ -184,100 +203,63 @@ fn grow(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
             )
         } else {
             best_split_of_boxes(&node.boxes, &node.bounds, ctx.options.axes, cost)
-        }
-    });
-    let split = split.filter(|s| {
-        let extra = (s.n_left + s.n_right) as usize - n;
-        let fits = if ctx.parallel {
-            total.fetch_add(extra, Ordering::Relaxed) + extra <= ctx.budget
-        } else {
-            total.load(Ordering::Relaxed) + extra <= ctx.budget
         };
-        tally.budget_bound |= !fits;
-        fits
-    });
-    let Some(split) = split else {
-        tally.binned_ms = start.elapsed().as_secs_f64() * 1e3;
-        return (Top::Leaf(node.ids), tally);
-    };
-    let (left, right) = partition(ctx, node, &split);
-    tally.binned_ms = start.elapsed().as_secs_f64() * 1e3;
-    let kept = left.ids.len() + right.ids.len();
-    tally.clipped_away += (split.n_left + split.n_right) as usize - kept;
-    if !ctx.parallel {
-        // The sweep's running total: the pending children replace their parent.
-        let now = total.load(Ordering::Relaxed);
-        total.store(now + kept - n, Ordering::Relaxed);
+        self.tally.binned_ms += start.elapsed().as_secs_f64() * 1e3;
+        split
     }
-    let ((l, lt), (r, rt)) = if ctx.parallel {
-        rayon::join(|| grow(ctx, left, total), || grow(ctx, right, total))
-    } else {
-        let l = grow(ctx, left, total);
-        (l, grow(ctx, right, total))
-    };
-    let top = Top::Split {
-        axis: split.axis,
-        pos: split.pos,
-        children: Box::new([l, r]),
-    };
-    (top, tally.add(lt).add(rt))
+
+    fn partition(&mut self, node: Refs, split: &Split) -> [Refs; 2] {
+        let start = Instant::now();
+        let children = partition(self.ctx, node, split);
+        self.tally.binned_ms += start.elapsed().as_secs_f64() * 1e3;
+        children
+    }
+
+    fn leaf(&mut self, node: Refs, refs: &mut Vec<u32>) {
+        refs.extend_from_slice(&node.ids);
+    }
+
+    /// A node at or below the threshold (and, in parallel, at or below `fork_above`): the
+    /// exact sweep's subtree, from its events made and sorted here.
+    fn hand_over(&mut self, node: Refs, budget: Budget) -> Result<(Piece, BudgetUse), Refs> {
+        let ctx = self.ctx;
+        let n = node.ids.len();
+        if n > ctx.threshold || (ctx.parallel && n > ctx.fork_above) {
+            return Err(node);
+        }
+        let start = Instant::now();
+        let handed = Handed {
+            prims: &node.ids,
+            bounds: node.bounds,
+            depth: node.depth,
+            start: Start::Boxes(&node.boxes),
+        };
+        let (piece, report) = handed_subtree(handed, ctx.triangles, budget, ctx.options);
+        self.tally.add(Tally {
+            presort_ms: report.presort_ms,
+            binned_ms: 0.0,
+            subtrees_ms: start.elapsed().as_secs_f64() * 1e3,
+            peak_working_bytes: report.peak_working_bytes,
+        });
+        Ok((piece, report.budget))
+    }
 }
 
-/// The exact sweep's subtree of a node at or below the threshold, from its events made and
-/// sorted here.
-fn exact(ctx: &Ctx, node: Refs, total: &AtomicUsize) -> (Top, Tally) {
-    let start = Instant::now();
-    let n = node.ids.len();
-    let triangles: Vec<Triangle> = node
-        .ids
-        .iter()
-        .map(|&i| ctx.triangles[i as usize])
-        .collect();
-    // Depth first, the subtree may hold what the budget leaves beside the references of the
-    // finished leaves and the pending nodes: exactly the sweep's running total.
-    let outside = if ctx.parallel {
-        0
-    } else {
-        total.load(Ordering::Relaxed) - n
-    };
-    let subtree = Subtree {
-        triangles: &triangles,
-        bounds: node.bounds,
-        depth: node.depth,
-        max_depth: ctx.max_depth,
-        budget: ctx.budget - outside,
-        shared_total: ctx.parallel.then_some(total),
-    };
-    let mut piece = Piece {
-        nodes: Vec::new(),
-        refs: Vec::new(),
-    };
-    let report = build_subtree(
-        &subtree,
-        &node.boxes,
-        ctx.options,
-        &mut piece.nodes,
-        &mut piece.refs,
-    );
-    for r in piece.refs.iter_mut() {
-        *r = node.ids[*r as usize];
+impl Fork for BinnedTop<'_> {
+    fn fork(&self) -> Self {
+        BinnedTop {
+            ctx: self.ctx,
+            tally: Tally::default(),
+        }
     }
-    if !ctx.parallel {
-        total.store(outside + piece.refs.len(), Ordering::Relaxed);
+
+    fn join(&mut self, other: Self) {
+        self.tally.add(other.tally);
     }
-    let tally = Tally {
-        budget_bound: report.budget_bound,
-        clipped_away: report.clipped_away,
-        presort_ms: report.presort_ms,
-        binned_ms: 0.0,
-        subtrees_ms: start.elapsed().as_secs_f64() * 1e3,
-        peak_working_bytes: report.peak_working_bytes,
-    };
-    (Top::Exact(piece), tally)
 }
 
 /// The node's references split between its children by the sweep's rules ([`route`]).
-fn partition(ctx: &Ctx, node: Refs, split: &Split) -> (Refs, Refs) {
+fn partition(ctx: &Ctx, node: Refs, split: &Split) -> [Refs; 2] {
     let (left_box, right_box) = node.bounds.split(split.axis, split.pos);
     let child = |cap: u32, bounds| Refs {
         ids: Vec::with_capacity(cap as usize),
@@ -295,8 +277,7 @@ fn partition(ctx: &Ctx, node: Refs, split: &Split) -> (Refs, Refs) {
             sides[side].boxes.push(b);
         });
     }
-    let [left, right] = sides;
-    (left, right)
+    sides
 }
 
 /// Sends reference `id` (box `b`) of `node` to the children of `split` by the sweep's rules:
@@ -456,30 +437,6 @@ impl Histograms {
             a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
         }
         self
-    }
-}
-
-/// Writes `top` from slot `slot` on in the sweep's layout: a node's two children side by
-/// side, appended when it is split, depth first, left first; leaves' references in order.
-fn lay_out(top: Top, out: &mut BuiltTree, slot: usize) {
-    match top {
-        Top::Leaf(ids) => {
-            out.nodes[slot] = Node::leaf(out.refs.len() as u32, ids.len() as u32);
-            out.refs.extend_from_slice(&ids);
-        }
-        Top::Exact(piece) => stitch::place(out, slot, &piece),
-        Top::Split {
-            axis,
-            pos,
-            children,
-        } => {
-            let left = out.nodes.len();
-            out.nodes[slot] = Node::interior(axis, pos, left as u32);
-            out.nodes.extend([Node::leaf(0, 0); 2]);
-            let [l, r] = *children;
-            lay_out(l, out, left);
-            lay_out(r, out, left + 1);
-        }
     }
 }
 

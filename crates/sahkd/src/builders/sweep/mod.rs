@@ -3,15 +3,18 @@
 //! Split events (start, end, planar) of every primitive on every axis are made once at the
 //! root and sorted once. A node is priced by one sweep per axis over its sorted events
 //! ([`search`]); its children's events come from its own by a stable split, with straddlers
-//! re-clipped and merged in ([`partition`]). Nodes are built depth first from an explicit
-//! stack, left child before right, both children's slots allocated together.
+//! re-clipped and merged in ([`partition`]). That is the search ([`ExactSweep`]) the serial
+//! driver (`driver::serial`) runs: depth first from an explicit stack, left child before
+//! right, both children's slots allocated together, the reference budget a running total.
 //!
 //! With `BuildOptions::bins`, nodes above a size threshold are priced at bin boundaries
-//! instead ([`binned`]), and the sweep runs below it.
+//! instead ([`binned`], another search for the driver), which hands them to the sweep below
+//! it.
 //!
-//! [`build_subtree`] builds below any node, not only the root: the median builder hands it
-//! its small nodes. [`build_subtree_sorted`] starts from events already sorted elsewhere (the
-//! hybrid builder hands over the level builder's lists, which use the same encoding).
+//! [`handed_subtree`] builds below any node another phase hands over, not only the root:
+//! from the node's boxes (the median builder's small nodes, the binned top's) or from events
+//! already sorted elsewhere (the hybrid builder hands over the level builder's lists, which
+//! use the same encoding).
 
 mod binned;
 mod events;
@@ -20,22 +23,14 @@ mod search;
 
 pub(crate) use events::Event;
 
-use super::choice::split_or_leaf;
+use super::choice::Split;
+use super::driver::{self, Budget, BudgetUse, Rules, SplitSearch};
+use super::stitch::Piece;
 use super::{BuildOptions, BuiltTree, Primitives};
 use crate::geometry::{Aabb, Triangle};
 use crate::tree::Node;
 use partition::{Segment, Workspace};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
-
-/// A node waiting to be built: its slot, box, depth, primitive count and events.
-struct Pending {
-    slot: u32,
-    bounds: Aabb,
-    depth: u32,
-    n: u32,
-    events: Segment,
-}
 
 pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
     if options.resolved_bins() != 0 {
@@ -47,8 +42,10 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
         bounds: prims.bounds,
         depth: 0,
         max_depth: options.cost.max_depth_for(total_prims),
-        budget: options.cost.reference_budget(total_prims),
-        shared_total: None,
+        budget: Budget {
+            limit: options.cost.reference_budget(total_prims),
+            shared: None,
+        },
     };
     let mut built = BuiltTree::default();
     let report = build_subtree(
@@ -69,41 +66,88 @@ pub(crate) fn build_binned_parallel(prims: &Primitives, options: &BuildOptions) 
     binned::build(prims, options, true)
 }
 
-/// A node to build the whole subtree of, with the limits that come from the whole tree.
-pub(crate) struct Subtree<'a> {
-    /// The node's primitives' triangles (for clipping). Primitive `i` here is `triangles[i]`;
-    /// the leaves reference these local indices.
-    pub triangles: &'a [Triangle],
-    /// The node's box.
+/// A node another phase hands to the sweep for its whole subtree: the level passes'
+/// frontier (`hybrid`), the median builder's small nodes, the binned top's nodes below its
+/// threshold.
+pub(crate) struct Handed<'a> {
+    /// The node's primitives (the whole tree's indices); the sweep's primitive `i` is
+    /// `prims[i]`.
+    pub prims: &'a [u32],
     pub bounds: Aabb,
     /// The node's depth in the whole tree.
     pub depth: u32,
+    pub start: Start<'a>,
+}
+
+/// A handed node's references as the sweep starts from them.
+pub(crate) enum Start<'a> {
+    /// Their boxes (within the node), in the order of `prims`: the events are made and
+    /// sorted here.
+    Boxes(&'a [Aabb]),
+    /// Each axis's events, primitives numbered as in `prims`, sorted by the event order: no
+    /// sort (the level passes' lists, which use the same encoding).
+    Sorted([Vec<Event>; 3]),
+}
+
+/// The sweep's subtree of `node`, a node of the tree of `triangles` (all of them), its leaves
+/// referencing the whole tree's primitives, within `budget` (see `driver::Budget`).
+pub(crate) fn handed_subtree(
+    node: Handed,
+    triangles: &[Triangle],
+    budget: Budget,
+    options: &BuildOptions,
+) -> (Piece, SubtreeReport) {
+    let local: Vec<Triangle> = node.prims.iter().map(|&p| triangles[p as usize]).collect();
+    let subtree = Subtree {
+        triangles: &local,
+        bounds: node.bounds,
+        depth: node.depth,
+        max_depth: options.cost.max_depth_for(triangles.len()),
+        budget,
+    };
+    let (mut nodes, mut refs) = (Vec::new(), Vec::new());
+    let report = match node.start {
+        Start::Boxes(boxes) => build_subtree(&subtree, boxes, options, &mut nodes, &mut refs),
+        Start::Sorted(events) => {
+            let work = Workspace::from_sorted(events, local.len());
+            grow(&subtree, work, options, &mut nodes, &mut refs)
+        }
+    };
+    for r in refs.iter_mut() {
+        *r = node.prims[*r as usize];
+    }
+    (Piece { nodes, refs }, report)
+}
+
+/// A node to build the whole subtree of, with the limits that come from the whole tree.
+struct Subtree<'a> {
+    /// The node's primitives' triangles (for clipping). Primitive `i` here is `triangles[i]`;
+    /// the leaves reference these local indices.
+    triangles: &'a [Triangle],
+    /// The node's box.
+    bounds: Aabb,
+    /// The node's depth in the whole tree.
+    depth: u32,
     /// The whole tree's depth limit.
-    pub max_depth: u32,
-    /// The most references the subtree's leaves may hold together: a running total, checked
-    /// depth first (Wald and Havran's rule).
-    pub budget: usize,
-    /// With subtrees built at once: the references of the whole tree so far, which every
-    /// split adds to (through the subtree's `Claims`) and which must stay within `budget` too
-    /// (a guard on memory: the order of the additions varies, so a build that hits it is not
-    /// deterministic, see `hybrid`).
-    pub shared_total: Option<&'a AtomicUsize>,
+    max_depth: u32,
+    /// The most references the subtree's leaves may hold together (a running total, checked
+    /// depth first: Wald and Havran's rule) and, with subtrees built at once, the shared
+    /// total every split adds to, a guard on memory (see `driver::Budget` and `hybrid`).
+    budget: Budget<'a>,
 }
 
 /// What building a subtree took.
 pub(crate) struct SubtreeReport {
     pub presort_ms: f64,
     pub peak_working_bytes: usize,
-    /// Whether the budget refused a split the SAH wanted.
-    pub budget_bound: bool,
-    /// References clipping removed, summed over the splits (before minus after).
-    pub clipped_away: usize,
+    /// Whether the budget refused a split, and the references clipping removed.
+    pub budget: BudgetUse,
 }
 
 /// Builds the subtree of `subtree`'s node from its primitives' `boxes` (within the node's
 /// box), appending its nodes to `nodes` (its root first, at the index `nodes.len()` had on
 /// entry) and its leaves' references to `refs`.
-pub(crate) fn build_subtree(
+fn build_subtree(
     subtree: &Subtree,
     boxes: &[Aabb],
     options: &BuildOptions,
@@ -119,145 +163,109 @@ pub(crate) fn build_subtree(
     }
 }
 
-/// As [`build_subtree`], from each axis's events of the node's primitives (local indices,
-/// sorted by the event order), without sorting again.
-pub(crate) fn build_subtree_sorted(
-    subtree: &Subtree,
-    events: [Vec<Event>; 3],
-    options: &BuildOptions,
-    nodes: &mut Vec<Node>,
-    refs: &mut Vec<u32>,
-) -> SubtreeReport {
-    let work = Workspace::from_sorted(events, subtree.triangles.len());
-    grow(subtree, work, options, nodes, refs)
-}
-
-/// The depth-first loop over the node's subtree (its report's `presort_ms` is 0).
+/// The node's subtree by the driver, with the exact sweep as its search (its report's
+/// `presort_ms` is 0).
 fn grow(
     subtree: &Subtree,
-    mut work: Workspace,
+    work: Workspace,
     options: &BuildOptions,
     nodes: &mut Vec<Node>,
     refs: &mut Vec<u32>,
 ) -> SubtreeReport {
-    let cost = &options.cost;
-    let (max_depth, budget) = (subtree.max_depth, subtree.budget);
-    let clip = options.clip.then_some(subtree.triangles);
-    let n = subtree.triangles.len();
-
-    let root = nodes.len() as u32;
-    nodes.push(Node::leaf(0, 0));
-    // References held by the finished leaves and the pending nodes: the running total the
-    // reference budget applies to.
-    let mut references = n;
-    let (mut budget_bound, mut clipped_away) = (false, 0);
-    let mut claims = Claims::new(subtree.shared_total, budget);
-    let mut stack = vec![Pending {
-        slot: root,
+    let mut sweep = ExactSweep {
+        work,
+        options,
+        clip: options.clip.then_some(subtree.triangles),
+    };
+    let root = SweepNode {
         bounds: subtree.bounds,
         depth: subtree.depth,
-        n: n as u32,
+        n: subtree.triangles.len() as u32,
         events: [0; 3],
-    }];
-    while let Some(node) = stack.pop() {
-        let split = split_or_leaf(node.n, node.depth, max_depth, cost, || {
-            search::best_split(
-                work.events(&node.events),
-                &node.bounds,
-                node.n,
-                options.axes,
-                cost,
-            )
-        })
-        .filter(|s| {
-            let extra = (s.refs() - node.n) as usize;
-            let fits = references + extra <= budget && claims.take(extra, budget);
-            budget_bound |= !fits;
-            fits
-        });
-        let Some(split) = split else {
-            let first = refs.len() as u32;
-            work.collect_prims(&node.events, refs);
-            debug_assert_eq!(refs.len() as u32 - first, node.n);
-            nodes[node.slot as usize] = Node::leaf(first, node.n);
-            work.pop(&node.events);
-            continue;
-        };
-        let left = nodes.len() as u32;
-        nodes[node.slot as usize] = Node::interior(split.axis, split.pos, left);
-        nodes.extend([Node::leaf(0, 0); 2]);
-        let children = work.split(&node.events, &node.bounds, &split, clip);
-        references = references + (children.n_left + children.n_right) as usize - node.n as usize;
-        clipped_away +=
-            (split.n_left + split.n_right - children.n_left - children.n_right) as usize;
-        let (left_box, right_box) = node.bounds.split(split.axis, split.pos);
-        let depth = node.depth + 1;
-        stack.push(Pending {
-            slot: left + 1,
-            bounds: right_box,
-            depth,
-            n: children.n_right,
-            events: children.right,
-        });
-        stack.push(Pending {
-            slot: left,
-            bounds: left_box,
-            depth,
-            n: children.n_left,
-            events: children.left,
-        });
-    }
-    claims.give_back_unused();
+    };
+    let rules = Rules {
+        cost: &options.cost,
+        max_depth: subtree.max_depth,
+    };
+    let budget = driver::serial(&mut sweep, root, rules, subtree.budget, nodes, refs);
     SubtreeReport {
         presort_ms: 0.0,
-        peak_working_bytes: work.peak_bytes(),
-        budget_bound,
-        clipped_away,
+        peak_working_bytes: sweep.work.peak_bytes(),
+        budget,
     }
 }
 
-/// A subtree's share of the shared reference total (`Subtree::shared_total`), claimed in
-/// chunks: one atomic add per split, with two workers bouncing its cache line, cost about
-/// 6 % of the sweep's loop at 2 threads. Claims count more than the splits add, by less than
-/// a chunk per subtree at work, so the guard can refuse early, never late; a refusal sends
-/// every builder that shares a total back to the depth-first build, so the tree is the same.
-struct Claims<'a> {
-    total: Option<&'a AtomicUsize>,
-    /// Claimed and not yet spent.
-    unspent: usize,
-    chunk: usize,
+/// The exact sweep as the driver's search: every pending node's events live in one
+/// workspace, as stacks, the node being built on top (the serial driver builds the left child
+/// first, which the workspace's split leaves on top).
+struct ExactSweep<'a> {
+    work: Workspace,
+    options: &'a BuildOptions,
+    /// The triangles, to re-clip straddlers (`None` without clipping).
+    clip: Option<&'a [Triangle]>,
 }
 
-impl<'a> Claims<'a> {
-    fn new(total: Option<&'a AtomicUsize>, budget: usize) -> Claims<'a> {
-        Claims {
-            total,
-            unspent: 0,
-            chunk: (budget / 1024).clamp(1, 4096),
-        }
+/// A node of the sweep: its box, depth, primitive count and the start of its events.
+struct SweepNode {
+    bounds: Aabb,
+    depth: u32,
+    n: u32,
+    events: Segment,
+}
+
+impl SplitSearch for ExactSweep<'_> {
+    type Node = SweepNode;
+
+    #[inline]
+    fn size(node: &SweepNode) -> u32 {
+        node.n
     }
 
-    /// Whether `extra` more references fit the shared total (always, without one).
-    fn take(&mut self, extra: usize, budget: usize) -> bool {
-        let Some(total) = self.total else {
-            return true;
-        };
-        if extra > self.unspent {
-            let claim = (extra - self.unspent).max(self.chunk);
-            if total.fetch_add(claim, Ordering::Relaxed) + claim > budget {
-                return false;
-            }
-            self.unspent += claim;
-        }
-        self.unspent -= extra;
-        true
+    #[inline]
+    fn depth(node: &SweepNode) -> u32 {
+        node.depth
     }
 
-    /// Returns what was claimed and not spent, so that subtrees built later may use it.
-    fn give_back_unused(self) {
-        if let Some(total) = self.total {
-            total.fetch_sub(self.unspent, Ordering::Relaxed);
-        }
+    #[inline]
+    fn search(&mut self, node: &SweepNode) -> Option<Split> {
+        search::best_split(
+            self.work.events(&node.events),
+            &node.bounds,
+            node.n,
+            self.options.axes,
+            &self.options.cost,
+        )
+    }
+
+    #[inline]
+    fn partition(&mut self, node: SweepNode, split: &Split) -> [SweepNode; 2] {
+        let children = self
+            .work
+            .split(&node.events, &node.bounds, split, self.clip);
+        let (left_box, right_box) = node.bounds.split(split.axis, split.pos);
+        let depth = node.depth + 1;
+        [
+            SweepNode {
+                bounds: left_box,
+                depth,
+                n: children.n_left,
+                events: children.left,
+            },
+            SweepNode {
+                bounds: right_box,
+                depth,
+                n: children.n_right,
+                events: children.right,
+            },
+        ]
+    }
+
+    #[inline]
+    fn leaf(&mut self, node: SweepNode, refs: &mut Vec<u32>) {
+        let first = refs.len();
+        self.work.collect_prims(&node.events, refs);
+        debug_assert_eq!(refs.len() - first, node.n as usize);
+        self.work.pop(&node.events);
     }
 }
 
