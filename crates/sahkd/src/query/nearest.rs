@@ -10,7 +10,9 @@
 //!
 //! A child's distance follows from its parent's by changing one axis's component (the
 //! incremental distance of Arya and Mount), so the walk carries no boxes; a triangle is
-//! skipped without its exact test when its bounding box already lies beyond the bound.
+//! skipped without its exact test when its bounding box or its plane already lies beyond the
+//! bound. The boxes of a layout block's four triangles are measured at once in float32 SSE,
+//! against the bound loosened by float32's rounding, before any triangle is read one by one.
 
 use super::triangle::{closest_on_triangle, cross, d3, dot, sub, D3};
 use super::ClosestPoint;
@@ -71,6 +73,74 @@ fn beyond_plane(p: D3, c: &Triangle, limit: f64) -> bool {
     h * h > limit * dot(n, n)
 }
 
+/// The query point in float32, for the four-triangle box test ([`boxes_within`]).
+struct Near32 {
+    p: [f32; 3],
+    /// An upper bound on how far rounding moved the point (zero for the usual float32 query
+    /// point, whose scaled coordinates are exact in float32).
+    moved: f64,
+}
+
+impl Near32 {
+    fn new(p: D3) -> Near32 {
+        let p32 = p.map(|x| x as f32);
+        let moved = (0..3).map(|a| (p[a] - p32[a] as f64).abs()).sum();
+        Near32 { p: p32, moved }
+    }
+
+    /// The float32 bound for [`boxes_within`] from the f64 `limit` (squared): loose enough
+    /// that a box it rejects lies beyond `limit` from the exact point. The rounded point is
+    /// at most `moved` away, so the bound's root grows by that; the float32 box distance's
+    /// own rounding (a few units in the last place of a sum of three squares) and this
+    /// bound's are far below the relative 1e-5 added; the absolute `f32::MIN_POSITIVE`
+    /// covers squares that fall below float32's normal range. An infinite or huge `limit`
+    /// gives infinity, which rejects nothing.
+    fn limit(&self, limit: f64) -> f32 {
+        let root = limit.sqrt() + self.moved;
+        (root * root * (1.0 + 1e-5) + f32::MIN_POSITIVE as f64) as f32
+    }
+}
+
+/// The lanes (bit `i` for triangle `i`) of a layout block of `k >= 2` triangles whose
+/// bounding boxes lie within `limit32` (squared, from [`Near32::limit`]) of the point: the
+/// four boxes' distances in one pass of float32 SSE, each coordinate row one vector load, as
+/// the ray test reads the blocks (`trace::triangle`). The bound is conservative, so a
+/// dropped lane's triangle lies beyond the f64 bound; the survivors take the one-triangle
+/// tests.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn boxes_within(block: &[u32], near: &Near32, limit32: f32) -> u32 {
+    use std::arch::x86_64::*;
+    let k = block.len() / WORDS;
+    assert!(k >= 2, "a block of at least 2 triangles");
+    let ptr = block.as_ptr() as *const f32;
+    // SAFETY: SSE is part of x86_64. Row `r <= 8` starts at word `r * k` and a load reads
+    // 4 words, at most word `8 * k + 3 < 10 * k` for `k >= 2`: inside the block. Lanes
+    // `k..4` read other rows' floats or indices as floats and are masked off.
+    unsafe {
+        let row = |r: usize| _mm_loadu_ps(ptr.add(r * k));
+        let zero = _mm_setzero_ps();
+        let mut d2 = zero;
+        for a in 0..3 {
+            let (x, y, z) = (row(a), row(3 + a), row(6 + a));
+            let lo = _mm_min_ps(_mm_min_ps(x, y), z);
+            let hi = _mm_max_ps(_mm_max_ps(x, y), z);
+            let q = _mm_set1_ps(near.p[a]);
+            let e = _mm_max_ps(_mm_max_ps(_mm_sub_ps(lo, q), _mm_sub_ps(q, hi)), zero);
+            d2 = _mm_add_ps(d2, _mm_mul_ps(e, e));
+        }
+        let beyond = _mm_movemask_ps(_mm_cmpgt_ps(d2, _mm_set1_ps(limit32))) as u32;
+        !beyond & ((1 << k) - 1)
+    }
+}
+
+/// Every lane: the f64 tests decide alone.
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn boxes_within(block: &[u32], _near: &Near32, _limit32: f32) -> u32 {
+    (1 << (block.len() / WORDS)) - 1
+}
+
 /// A node to visit: its squared distance from the point, and that distance's components
 /// along each axis (zero where the point lies within the node's extent), from which a
 /// child's distance follows without its box.
@@ -122,6 +192,8 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3, hints: &[u32]) -> Option<Clo
             limit = bound * bound;
         }
     }
+    let near32 = Near32::new(pd);
+    let mut limit32 = near32.limit(limit);
     let mut stack = [MaybeUninit::<Pending>::uninit(); MAX_DEPTH_CAP as usize + 4];
     let mut tested = [u32::MAX; TESTED];
     let mut top = 0usize;
@@ -140,36 +212,56 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3, hints: &[u32]) -> Option<Clo
         if current.distance2 <= limit {
             let node = &nodes[current.node as usize];
             if node.is_leaf() {
-                let blocks = layout.leaf_words(node).chunks(BLOCK * WORDS);
-                for (block, i) in blocks.flat_map(|b| (0..b.len() / WORDS).map(move |i| (b, i))) {
-                    // A triangle in several leaves needs no second look: it was either
-                    // tested or found beyond a bound, and the bound only shrinks. Its index
-                    // is read first, its corners only when they are needed.
-                    let prim = block[9 * (block.len() / WORDS) + i];
-                    let slot = &mut tested[prim as usize % TESTED];
-                    if *slot == prim {
-                        continue;
-                    }
-                    *slot = prim;
-                    let record = block_record(block, i);
-                    // The triangle's box and its plane bound its distance from below: cheap
-                    // rejections of most of a leaf's triangles once a good answer is known.
-                    let c = &record.corners;
-                    let tri_box = Aabb::new(c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
-                    if box_distance2(pd, &tri_box) > limit || beyond_plane(pd, c, limit) {
-                        continue;
-                    }
-                    let found = closest_on_triangle(pd, &record.corners);
-                    let better = match best {
-                        None => true,
-                        Some((d2, prim, _)) => {
-                            found.distance2 < d2 || (found.distance2 == d2 && record.prim < prim)
-                        }
+                for block in layout.leaf_words(node).chunks(BLOCK * WORDS) {
+                    let k = block.len() / WORDS;
+                    // The block's triangles whose boxes may lie within the bound, four at
+                    // a time; a block of one takes the one-triangle tests.
+                    let (mut lanes, filtered) = if k >= 2 {
+                        (boxes_within(block, &near32, limit32), limit)
+                    } else {
+                        (1, f64::INFINITY)
                     };
-                    if better {
-                        best = Some((found.distance2, record.prim, found.weights));
-                        let bound = found.distance2.sqrt() + slack;
-                        limit = bound * bound;
+                    while lanes != 0 {
+                        let i = lanes.trailing_zeros() as usize;
+                        lanes &= lanes - 1;
+                        // A triangle in several leaves needs no second look: it was either
+                        // tested or found beyond a bound, and the bound only shrinks. Its
+                        // index is read first, its corners only when they are needed.
+                        let prim = block[9 * k + i];
+                        let slot = &mut tested[prim as usize % TESTED];
+                        if *slot == prim {
+                            continue;
+                        }
+                        *slot = prim;
+                        let record = block_record(block, i);
+                        // The triangle's box and its plane bound its distance from below:
+                        // cheap rejections once a good answer is known (the box only where
+                        // the block's test did not make it with the bound as it is now).
+                        let c = &record.corners;
+                        if limit < filtered {
+                            let tri_box =
+                                Aabb::new(c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
+                            if box_distance2(pd, &tri_box) > limit {
+                                continue;
+                            }
+                        }
+                        if beyond_plane(pd, c, limit) {
+                            continue;
+                        }
+                        let found = closest_on_triangle(pd, &record.corners);
+                        let better = match best {
+                            None => true,
+                            Some((d2, prim, _)) => {
+                                found.distance2 < d2
+                                    || (found.distance2 == d2 && record.prim < prim)
+                            }
+                        };
+                        if better {
+                            best = Some((found.distance2, record.prim, found.weights));
+                            let bound = found.distance2.sqrt() + slack;
+                            limit = bound * bound;
+                            limit32 = near32.limit(limit);
+                        }
                     }
                 }
             } else {
@@ -222,6 +314,46 @@ mod tests {
     use crate::{build_triangles, BuildOptions};
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
+
+    /// The four-triangle filter never drops a triangle that lies within the bound: blocks of
+    /// 2-4 random triangles (some flat) at every scale, points near and far, the bound set to
+    /// each triangle's own distance plus the walk's slack (the tightest that must keep it), and the f64
+    /// point off float32's grid so that the rounded point moves.
+    #[test]
+    fn the_block_filter_keeps_every_triangle_within_the_bound() {
+        let mut rng = StdRng::seed_from_u64(11);
+        let mut kept = 0;
+        for round in 0..20_000 {
+            let size = 10f32.powi(rng.random_range(-6..7));
+            let point =
+                |rng: &mut StdRng| Vec3(std::array::from_fn(|_| rng.random_range(-size..size)));
+            let k = 2 + round % 3;
+            let mut tris: Vec<Triangle> = (0..k)
+                .map(|_| [point(&mut rng), point(&mut rng), point(&mut rng)])
+                .collect();
+            if round % 7 == 0 {
+                tris[0][2] = tris[0][0] + (tris[0][1] - tris[0][0]) * 0.5;
+            }
+            let mut block = Vec::new();
+            for r in 0..9 {
+                block.extend(tris.iter().map(|t| t[r / 3][r % 3].to_bits()));
+            }
+            block.extend(0..k as u32);
+            let reach = size * 10f32.powi(rng.random_range(-3..3));
+            let p: D3 = std::array::from_fn(|_| rng.random_range(-reach..reach) as f64 * 1.1);
+            let near = Near32::new(p);
+            let corners: Vec<Vec3> = tris.iter().flatten().copied().collect();
+            let slack = slack(&Aabb::of_points(&corners), p);
+            for (i, t) in tris.iter().enumerate() {
+                let bound = closest_on_triangle(p, t).distance2.sqrt() + slack;
+                let limit = bound * bound;
+                let lanes = boxes_within(&block, &near, near.limit(limit));
+                assert!(lanes >> i & 1 == 1, "{t:?} from {p:?} at {limit}");
+                kept += 1;
+            }
+        }
+        assert!(kept > 0);
+    }
 
     /// Hints change where a walk starts, never its answer: random points against random
     /// triangles with every triangle twice (ties everywhere), each point walked without

@@ -1,9 +1,10 @@
 //! The inside test by ray parity: a point is inside a closed mesh when a ray from it crosses
 //! the surface an odd number of times.
 //!
-//! The kd-tree's [`KdTree::for_each_hit`] visits every leaf along the ray and reports a
-//! triangle referenced by several of them once per leaf, so the crossings are counted as
-//! distinct triangles (sorted and deduplicated). What remains inexact is a ray through a
+//! The kd-tree's crossing walk (`KdTree::for_each_crossing`: the hits of
+//! [`KdTree::for_each_hit`] without each hit's distance refined, which parity never reads)
+//! visits every leaf along the ray and reports a triangle referenced by several of them once
+//! per leaf, so the crossings are counted as distinct triangles (sorted and deduplicated). What remains inexact is a ray through a
 //! shared edge or vertex (counted once per triangle there, which can flip the parity) or
 //! through a hole in the mesh. So one ray decides when each of its crossings lies clear of
 //! its triangle's edges (every barycentric weight above [`EDGE_CLEARANCE`]): on a closed mesh
