@@ -129,13 +129,8 @@ impl sahkd_build_options {
             1 => true,
             c => return invalid(format!("options.clip must be 0 or 1, got {c}")),
         };
-        let threads = match o.threads {
-            0 => None,
-            n => Some(
-                sahkd::threads::check(n as usize)
-                    .or_else(|e| invalid(format!("options.threads: {e}")))?,
-            ),
-        };
+        // 0 is every core; any other count is checked by `validate`, the library's rule.
+        let threads = (o.threads != 0).then_some(o.threads as usize);
         let bins = match o.bins {
             SAHKD_BINS_DEFAULT => None,
             b if b < 0 => {

@@ -129,6 +129,53 @@ int main(void) {
         o.bins = 16;
         EXPECT_ERR(sahkd_build_options_validate(&o), SAHKD_ERROR_INVALID_ARGUMENT, "bins");
     }
+    /* The library's edge values for each option (BuildOptions::validate): the last value
+     * accepted and the first refused, each given the library's answer, traversal cost 0
+     * (accepted) among them. */
+    {
+        struct {
+            size_t offset;
+            int is_float;
+            double value;
+            int accepted;
+        } edges[] = {
+            {offsetof(sahkd_build_options, traversal_cost), 1, 0.0, 1},
+            {offsetof(sahkd_build_options, traversal_cost), 1, -1e-6, 0},
+            {offsetof(sahkd_build_options, intersection_cost), 1, 1e-6, 1},
+            {offsetof(sahkd_build_options, intersection_cost), 1, 0.0, 0},
+            {offsetof(sahkd_build_options, empty_bonus), 1, 1.0, 1},
+            {offsetof(sahkd_build_options, empty_bonus), 1, 0.0, 0},
+            {offsetof(sahkd_build_options, max_duplication), 1, 1.0, 1},
+            {offsetof(sahkd_build_options, max_duplication), 1, 0.999, 0},
+            {offsetof(sahkd_build_options, max_depth), 0, 60, 1},
+            {offsetof(sahkd_build_options, max_depth), 0, 61, 0},
+            {offsetof(sahkd_build_options, leaf_size), 0, 0, 1},
+            {offsetof(sahkd_build_options, threads), 0, 1, 1},
+            {offsetof(sahkd_build_options, bins), 0, 0, 1},
+            {offsetof(sahkd_build_options, bins), 0, 1, 0},
+            {offsetof(sahkd_build_options, bins), 0, 2, 1},
+            {offsetof(sahkd_build_options, bins), 0, 1024, 1},
+            {offsetof(sahkd_build_options, bins), 0, 1025, 0},
+        };
+        for (size_t i = 0; i < sizeof edges / sizeof edges[0]; i++) {
+            sahkd_build_options o;
+            OK(sahkd_build_options_default(&o));
+            float f = (float)edges[i].value;
+            uint32_t u = (uint32_t)edges[i].value;
+            memcpy((char *)&o + edges[i].offset, edges[i].is_float ? (void *)&f : (void *)&u,
+                   sizeof(uint32_t));
+            if (edges[i].accepted) {
+                OK(sahkd_build_options_validate(&o));
+                OK(sahkd_tree_build(mesh, &o, &tree));
+                sahkd_tree_free(tree);
+                tree = NULL;
+            } else {
+                EXPECT_ERR(sahkd_build_options_validate(&o), SAHKD_ERROR_INVALID_ARGUMENT, "");
+                EXPECT_ERR(sahkd_tree_build(mesh, &o, &tree), SAHKD_ERROR_INVALID_ARGUMENT, "");
+                EXPECT(tree == NULL);
+            }
+        }
+    }
     /* The header's numbers are the library's names. */
     struct {
         const char *key, *value;
