@@ -4,8 +4,10 @@
 
     python scripts/embree_build.py MESH [--repeat K]
 
-The mesh is loaded as embreex users load one: `trimesh.load` (vertices and faces, the faces
-indexing the shared vertices), handed to Embree as an indexed triangle mesh, not a soup.
+The mesh is read by sahkd's own reader (the `sahkd` Python package: `maturin develop` in
+crates/sahkd-python), so that Embree builds exactly the vertices and faces `sahkd build` does;
+where that package is not installed, by `trimesh.load` (unprocessed: the same arrays for a
+triangle PLY), saying so. It is handed to Embree as an indexed triangle mesh, not a soup.
 Embree builds its BVH on the scene's first query; the timed region is that first query of one
 ray on a fresh scene (a single ray costs microseconds). Embree uses every core the process may
 run on: run it under `taskset -c 0` for one thread. Prints the median and the min-max of K
@@ -19,13 +21,22 @@ import numpy as np
 
 
 def load_indexed(path):
-    """Vertices (V, 3) float32 and faces (F, 3) int32, as trimesh reads them (unprocessed:
-    the file's own vertices, none merged or dropped)."""
-    import trimesh
+    """Vertices (V, 3) float32 and faces (F, 3) int32, as sahkd's reader reads them (the
+    file's own vertices, none merged or dropped)."""
+    try:
+        from sahkd._sahkd import _read_mesh
+    except ImportError:
+        import sys
 
-    mesh = trimesh.load(path, force="mesh", process=False)
-    vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float32)
-    faces = np.ascontiguousarray(mesh.faces, dtype=np.int32)
+        import trimesh
+
+        print("embree_build: the sahkd package is not installed; reading with trimesh", file=sys.stderr)
+        mesh = trimesh.load(path, force="mesh", process=False)
+        vertices, faces = mesh.vertices, mesh.faces
+    else:
+        vertices, faces = _read_mesh(path)
+    vertices = np.ascontiguousarray(vertices, dtype=np.float32)
+    faces = np.ascontiguousarray(faces, dtype=np.int32)
     return vertices, faces
 
 

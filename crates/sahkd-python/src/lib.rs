@@ -66,17 +66,17 @@ fn pool_of(threads: Option<usize>) -> PyResult<Arc<ThreadPool>> {
     pool::pool(threads).map_err(PyRuntimeError::new_err)
 }
 
-/// `threads=` under the library's rule (`sahkd::threads`): 1 up to the machine's cap.
+/// `threads=` as `BuildOptions::threads`, whose range `BuildOptions::validate` checks by the
+/// library's rule (`sahkd::threads`); only a negative number, which is no count, is refused here.
 fn threads_arg(threads: Option<i64>) -> PyResult<Option<usize>> {
-    match threads {
-        None => Ok(None),
-        Some(n) if n >= 1 => sahkd::threads::check(usize::try_from(n).unwrap_or(usize::MAX))
-            .map(Some)
-            .map_err(|e| PyValueError::new_err(format!("threads: {e}"))),
-        Some(n) => Err(PyValueError::new_err(format!(
-            "threads must be at least 1 (or None for every core), got {n}"
-        ))),
-    }
+    let count = |n: i64| {
+        usize::try_from(n).map_err(|_| {
+            PyValueError::new_err(format!(
+                "threads must be at least 1 (or None for every core), got {n}"
+            ))
+        })
+    };
+    threads.map(count).transpose()
 }
 
 fn namedtuple<'py>(

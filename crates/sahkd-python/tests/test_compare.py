@@ -8,6 +8,7 @@ import sys
 import numpy as np
 import pytest
 
+import sahkd
 from sahkd import compare
 from sahkd._sahkd import _read_mesh
 
@@ -98,15 +99,24 @@ def test_the_camera_looks_at_the_centre_from_twice_the_diagonal():
     np.testing.assert_allclose([top[1] / -top[2], bottom[1] / -bottom[2]], [half, -half], rtol=1e-6)
 
 
-def test_without_trimesh_meshes_are_read_with_the_library_reader(tmp_path, monkeypatch):
+@pytest.mark.parametrize("trimesh_installed", [True, False])
+def test_meshes_are_read_with_the_library_reader(tmp_path, monkeypatch, trimesh_installed):
     vertices, faces = sphere_mesh()
     path = tmp_path / "sphere.ply"
     write_ply(path, vertices, faces)
-    monkeypatch.setitem(sys.modules, "trimesh", None)  # makes `import trimesh` fail
+    if not trimesh_installed:
+        monkeypatch.setitem(sys.modules, "trimesh", None)  # makes `import trimesh` fail
     v, f, reader = compare.load_mesh(path)
     assert reader == "sahkd's mesh reader"
     np.testing.assert_array_equal(v, vertices)
     np.testing.assert_array_equal(f, faces)
+
+
+def test_the_default_builder_is_the_librarys():
+    vertices, faces = sphere_mesh()
+    caster = compare.Sahkd(None, None)
+    caster.build(vertices, faces)
+    assert caster.tree.stats["algorithm"] == sahkd.KdTree(vertices, faces).stats["algorithm"]
 
 
 def test_compare_runs_and_the_libraries_agree(tmp_path):

@@ -10,7 +10,8 @@ million rays per second, the rays that hit, and how many rays agree with sahkd: 
 or both hit at distances within --tolerance (relative). trimesh's intersector is pure Python,
 so it casts an evenly spaced sample of --trimesh-rays rays, and its numbers are for those.
 
-Meshes are read with trimesh when it is installed, else with the library's reader (PLY, OBJ).
+Meshes are read with the library's reader (PLY, OBJ), as every other door of sahkd reads them;
+other formats with trimesh, when it is installed.
 """
 
 import argparse
@@ -25,19 +26,20 @@ import sahkd
 
 
 def load_mesh(path):
-    """(vertices float32 (V, 3), faces int32 (F, 3), reader name)."""
-    try:
-        import trimesh
-    except ImportError:
-        trimesh = None
-    if trimesh is not None:
-        mesh = trimesh.load(path, force="mesh", process=False)
-        vertices, faces, reader = mesh.vertices, mesh.faces, f"trimesh {trimesh.__version__}"
-    else:
-        from ._sahkd import _read_mesh
+    """(vertices float32 (V, 3), faces int32 (F, 3), reader name): the library's reader, or
+    trimesh (when installed) for a file the library cannot read."""
+    from ._sahkd import _read_mesh
 
+    try:
         vertices, faces = _read_mesh(path)
         reader = "sahkd's mesh reader"
+    except ValueError:
+        try:
+            import trimesh
+        except ImportError:
+            raise
+        mesh = trimesh.load(path, force="mesh", process=False)
+        vertices, faces, reader = mesh.vertices, mesh.faces, f"trimesh {trimesh.__version__}"
     return (
         np.ascontiguousarray(vertices, dtype=np.float32),
         np.ascontiguousarray(faces, dtype=np.int32),
@@ -217,7 +219,9 @@ def main(argv=None):
     p.add_argument("mesh", help="a mesh file (PLY; anything trimesh reads if installed)")
     p.add_argument("--size", type=int, default=1024, help="image side in pixels (default 1024)")
     p.add_argument("--threads", type=int, default=None, help="sahkd's threads (default: all)")
-    p.add_argument("--algorithm", default="hybrid", help="sahkd's builder (default hybrid)")
+    p.add_argument(
+        "--algorithm", default=None, help="sahkd's builder (default: the library's)"
+    )
     p.add_argument("--repeat", type=int, default=3, help="casts timed per library (median)")
     p.add_argument("--tolerance", type=float, default=1e-4, help="relative t tolerance")
     p.add_argument("--trimesh-rays", type=int, default=4096, help="rays cast by trimesh")
