@@ -19,7 +19,7 @@
 //! The breadth-first builders are top phases in front of the driver, not searches in it: the
 //! level passes (`level`) and the median builder's large nodes (`median`) decide a whole level
 //! at once and check the budget per level, then hand their last level (a frontier) to the
-//! sweep, one subtree per node, through `sweep::build_subtree` and `build_subtree_sorted`.
+//! sweep, one subtree per node, through `sweep::handed_subtree`.
 
 use super::choice::{split_or_leaf, Split};
 use super::stitch::{self, Piece};
