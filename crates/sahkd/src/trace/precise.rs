@@ -79,31 +79,38 @@ impl Hit64 {
     }
 }
 
-/// Per-ray constants of the watertight test (Woop, Benthin and Wald 2013) in f64.
+/// Per-ray constants of the watertight test (Woop, Benthin and Wald 2013) in f64: the
+/// float32 test's shear axes, with the shear factors held as one array so that a corner is
+/// sheared by one expression.
 #[derive(Clone, Copy, Debug)]
 pub struct ShearedRay64 {
     origin: V,
-    kx: usize,
-    ky: usize,
-    kz: usize,
-    sx: f64,
-    sy: f64,
-    sz: f64,
+    /// `kx`, `ky`, `kz` of [`shear_axes`](super::triangle::shear_axes).
+    axes: [usize; 3],
+    /// `d[kx] / d[kz]`, `d[ky] / d[kz]`, `1 / d[kz]`.
+    factors: V,
 }
 
 impl ShearedRay64 {
     pub fn new(ray: &Ray64) -> ShearedRay64 {
         let d = ray.direction;
         let (kx, ky, kz) = super::triangle::shear_axes(d);
+        let factors = [d[kx], d[ky], 1.0].map(|n| n / d[kz]);
         ShearedRay64 {
             origin: ray.origin,
-            kx,
-            ky,
-            kz,
-            sx: d[kx] / d[kz],
-            sy: d[ky] / d[kz],
-            sz: 1.0 / d[kz],
+            axes: [kx, ky, kz],
+            factors,
         }
+    }
+
+    /// A corner relative to the origin, sheared so that the ray runs along +z: its x, y and
+    /// its scaled z.
+    #[inline(always)]
+    fn shear(&self, corner: [f32; 3]) -> V {
+        let [kx, ky, kz] = self.axes;
+        let [sx, sy, sz] = self.factors;
+        let p = [0, 1, 2].map(|a| corner[a] as f64 - self.origin[a]);
+        [p[kx] - sx * p[kz], p[ky] - sy * p[kz], sz * p[kz]]
     }
 
     /// The hit with `t_min <= t <= t_max`, if any; rays parallel to the triangle's plane and
@@ -111,16 +118,9 @@ impl ShearedRay64 {
     /// whose origin lies on the triangle (within `2^-40` of its size) counts as `t_min`.
     #[inline(always)]
     pub fn intersect(&self, tri: &Triangle, t_min: f64, t_max: f64) -> Option<(f64, f64, f64)> {
-        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
-        let o = self.origin;
-        let rel = |i: usize| [0, 1, 2].map(|a| tri[i][a] as f64 - o[a]);
-        let (a, b, c) = (rel(0), rel(1), rel(2));
-        let ax = a[kx] - self.sx * a[kz];
-        let ay = a[ky] - self.sy * a[kz];
-        let bx = b[kx] - self.sx * b[kz];
-        let by = b[ky] - self.sy * b[kz];
-        let cx = c[kx] - self.sx * c[kz];
-        let cy = c[ky] - self.sy * c[kz];
+        let [ax, ay, az] = self.shear(tri[0].0);
+        let [bx, by, bz] = self.shear(tri[1].0);
+        let [cx, cy, cz] = self.shear(tri[2].0);
         let eu = cx * by - cy * bx;
         let ev = ax * cy - ay * cx;
         let ew = bx * ay - by * ax;
@@ -131,7 +131,6 @@ impl ShearedRay64 {
         if det == 0.0 {
             return None;
         }
-        let (az, bz, cz) = (self.sz * a[kz], self.sz * b[kz], self.sz * c[kz]);
         let t = (eu * az + ev * bz + ew * cz) / det;
         let band = (az.abs() + bz.abs() + cz.abs()) * (1.0 / (1u64 << 40) as f64);
         if !(t <= t_max && t >= t_min - band) {
