@@ -10,8 +10,8 @@ MESH is a name in ../shared/scenes (or $SAHKD_SCENES); default bunny, sponza_dab
 and dragon_res2. Every preset is one warm-up build and `--repeat` timed builds of `sahkd build
 --preset NAME --json` (`build_ms`, the median reported); one thread means `taskset -c 0` and
 `--threads 1`. `sweep` is serial and is timed at one thread only. Embree is timed by
-scripts/embree_build.py in the same run, from the indexed mesh (needs embreex and trimesh in
-the interpreter running this), under `taskset -c 0` for one thread. `--embree3` adds Embree
+scripts/embree_build.py in the same run, from the indexed mesh (needs embreex, and sahkd's Python
+package or trimesh to read it, in the interpreter running this), under `taskset -c 0` for one thread. `--embree3` adds Embree
 3's build at medium quality (its default) and at high quality (spatial splits, the peer of the
 `quality` preset's clipped splits), timed by scripts/embree3_build.cpp (compiled into target/
 on first use; needs Debian's libembree-dev) on the same indexed mesh. `--baseline` adds the
@@ -89,7 +89,7 @@ def embree3_binary():
 
 
 def embree3(binary, mesh, quality, threads, repeat):
-    """Embree 3's build of `mesh` at `quality`, from the indexed mesh trimesh reads."""
+    """Embree 3's build of `mesh` at `quality`, from the indexed mesh embree_build.py loads."""
     sys.path.insert(0, HERE)
     from embree_build import load_indexed
 

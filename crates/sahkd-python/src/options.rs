@@ -152,12 +152,10 @@ fn build_options(args: &BuildArgs<'_, '_>, threads: Option<usize>) -> PyResult<B
         o.cost = cost_model(kw, o.cost)?;
     }
     if let Some(b) = int_arg(args.bins, "bins")? {
-        o.bins = Some(u32::try_from(b).map_err(|_| {
-            PyValueError::new_err(format!(
-                "bins must be 0 (exact SAH) or from 2 to {}, got {b}",
-                sahkd::MAX_BINS
-            ))
-        })?);
+        o.bins = Some(
+            u32::try_from(b)
+                .map_err(|_| PyValueError::new_err(BuildOptions::bins_out_of_range(b)))?,
+        );
     }
     o.validate().map_err(|e| match e {
         sahkd::builders::BuildError::InvalidOptions(m) => PyValueError::new_err(m),

@@ -264,6 +264,12 @@ named_values!(Preset, "preset",
     Fast => "fast", Balanced => "balanced", Quality => "quality", Paper => "paper", Sweep => "sweep");
 
 impl BuildOptions {
+    /// What [`validate`](Self::validate) says of a `bins` out of range; front ends whose
+    /// numbers can be negative say the same of values a `u32` cannot hold.
+    pub fn bins_out_of_range(got: impl std::fmt::Display) -> String {
+        format!("bins must be 0 (exact SAH) or from 2 to {MAX_BINS}, got {got}")
+    }
+
     /// Checks every parameter's range, naming the first one out of it. `build` and
     /// `build_triangles` call it; front ends may call it early.
     pub fn validate(&self) -> Result<(), BuildError> {
@@ -304,9 +310,7 @@ impl BuildOptions {
         }
         if let Some(bins) = self.bins.filter(|&b| b != 0) {
             if bins == 1 || bins > MAX_BINS {
-                return bad(format!(
-                    "bins must be 0 (exact SAH) or from 2 to {MAX_BINS}, got {bins}"
-                ));
+                return bad(Self::bins_out_of_range(bins));
             }
             if !matches!(self.algorithm, Algorithm::Sweep | Algorithm::Hybrid) {
                 return bad(format!(

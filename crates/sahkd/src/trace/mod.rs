@@ -227,6 +227,8 @@ pub(crate) enum Cut<T> {
     Both { far_t0: T, near_t1: T },
 }
 
+// `t_plane != t_plane` is the NaN test of a generic `PartialOrd` (a ray in the plane).
+#[allow(clippy::eq_op)]
 #[inline(always)]
 pub(crate) fn cut<T: PartialOrd + Copy>(t_plane: T, t0: T, t1: T) -> Cut<T> {
     if t_plane > t1 {
