@@ -18,7 +18,7 @@ use super::triangle::{closest_on_triangle, cross, d3, dot, sub, D3};
 use super::ClosestPoint;
 use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::{Aabb, Triangle, Vec3};
-use crate::tree::layout::{block_record, BLOCK, WORDS};
+use crate::tree::layout::{block_prim, block_record, BLOCK, WORDS};
 use crate::tree::KdTree;
 use std::mem::MaybeUninit;
 
@@ -227,7 +227,7 @@ pub(crate) fn closest_point(tree: &KdTree, p: Vec3, hints: &[u32]) -> Option<Clo
                         // A triangle in several leaves needs no second look: it was either
                         // tested or found beyond a bound, and the bound only shrinks. Its
                         // index is read first, its corners only when they are needed.
-                        let prim = block[9 * k + i];
+                        let prim = block_prim(block, i);
                         let slot = &mut tested[prim as usize % TESTED];
                         if *slot == prim {
                             continue;

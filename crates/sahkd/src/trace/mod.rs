@@ -65,7 +65,7 @@ fn visit_leaf(
             if hits.t[i] <= *limit {
                 let hit = Hit {
                     t: hits.t[i],
-                    prim: block[9 * k + i],
+                    prim: layout::block_prim(block, i),
                     u: hits.u[i],
                     v: hits.v[i],
                 };

@@ -160,6 +160,12 @@ fn in_trace_order(nodes: &[Node], scale: f32) -> bool {
     next as usize == nodes.len()
 }
 
+/// The triangle index of triangle `i` of a block: the row after the 9 coordinate rows.
+#[inline(always)]
+pub(crate) fn block_prim(block: &[u32], i: usize) -> u32 {
+    block[9 * (block.len() / WORDS) + i]
+}
+
 /// Triangle `i` of a block (`block` holds the block's words, so its length gives its size).
 #[inline(always)]
 pub(crate) fn block_record(block: &[u32], i: usize) -> TriangleRecord {
@@ -170,7 +176,7 @@ pub(crate) fn block_record(block: &[u32], i: usize) -> TriangleRecord {
     // result, stored as floats and reloaded in pairs, stalled the closest-point walk.
     TriangleRecord {
         corners: [corner(0), corner(1), corner(2)],
-        prim: block[9 * k + i],
+        prim: block_prim(block, i),
     }
 }
 
