@@ -99,21 +99,37 @@ pub(super) fn merge_in_place(list: &mut Vec<Event>, start: usize, b: &[Event]) {
 
 /// Sorts events whose primitive indices increase in input order, by position and kind only:
 /// a stable LSD radix sort on the upper 34 bits then yields the full (position, kind, prim)
-/// order. Three counting passes over 34 bits cost less on a big root than a comparison sort's
-/// log n passes over the whole key.
+/// order. Counting passes cost less on a big root than a comparison sort's log n passes over
+/// the whole key.
+///
+/// The digits cover only the bits in which the keys differ (the key minus the smallest): a
+/// node's events span a small range of positions, so its keys share their upper bits and
+/// often need one pass fewer, and the count arrays are only as wide as the digits.
 pub(super) fn sort_prim_ordered(events: &mut Vec<Event>, scratch: &mut Vec<Event>) {
-    const DIGITS: [(u32, u32); 3] = [(ID_BITS, 11), (ID_BITS + 11, 11), (ID_BITS + 22, 12)];
     if events.len() < 256 {
         events.sort_unstable();
         return;
     }
-    scratch.clear();
+    let (lo, hi) = events.iter().fold((u64::MAX, 0), |(lo, hi), e| {
+        let k = e.0 >> ID_BITS;
+        (lo.min(k), hi.max(k))
+    });
+    let bits = u64::BITS - (hi - lo).leading_zeros();
+    let passes = bits.div_ceil(11);
+    if passes == 0 {
+        return;
+    }
+    let width = bits.div_ceil(passes);
+    let mask = (1u64 << width) - 1;
+    let digit = |e: &Event, pass: u32| (((e.0 >> ID_BITS) - lo) >> (pass * width) & mask) as usize;
     scratch.resize(events.len(), Event::default());
-    for (shift, width) in DIGITS {
-        let mask = (1u64 << width) - 1;
-        let mut offsets = vec![0usize; 1 << width];
-        for &e in events.iter() {
-            offsets[((e.0 >> shift) & mask) as usize] += 1;
+    scratch.truncate(events.len());
+    let mut offsets = [0u32; 1 << 11];
+    for pass in 0..passes {
+        let offsets = &mut offsets[..1 << width];
+        offsets.fill(0);
+        for e in events.iter() {
+            offsets[digit(e, pass)] += 1;
         }
         let mut sum = 0;
         for o in offsets.iter_mut() {
@@ -121,9 +137,9 @@ pub(super) fn sort_prim_ordered(events: &mut Vec<Event>, scratch: &mut Vec<Event
             *o = sum;
             sum += c;
         }
-        for &e in events.iter() {
-            let d = ((e.0 >> shift) & mask) as usize;
-            scratch[offsets[d]] = e;
+        for e in events.iter() {
+            let d = digit(e, pass);
+            scratch[offsets[d] as usize] = *e;
             offsets[d] += 1;
         }
         std::mem::swap(events, scratch);
@@ -143,16 +159,26 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             seed >> 33
         };
-        let mut events = Vec::new();
-        for prim in 0..5000u32 {
-            // Few distinct positions, so that kinds and prims decide many comparisons.
-            let pos = (next() % 40) as f32 - 20.0;
-            events.push(Event::new(pos, (next() % 3) as u32, prim));
+        // Lengths on both sides of the comparison-sort cut and of the narrow digits; positions
+        // few and across zero (kinds and prims decide many comparisons), in a narrow range far
+        // from zero (keys sharing their upper bits), all equal, and spread over many exponents.
+        for (len, spread) in [(5000, 0), (300, 1), (9000, 1), (2000, 2), (700, 3), (20_000, 3)] {
+            let mut events = Vec::new();
+            for prim in 0..len as u32 {
+                let r = next();
+                let pos = match spread {
+                    0 => (r % 40) as f32 - 20.0,
+                    1 => 1000.0 + (r % 5000) as f32 / 4096.0,
+                    2 => 3.5,
+                    _ => f32::from_bits(0x3000_0000 + (r as u32 % 0x1800_0000)) * [1.0, -1.0][prim as usize % 2],
+                };
+                events.push(Event::new(pos, (next() % 3) as u32, prim));
+            }
+            let mut expected = events.clone();
+            expected.sort_unstable();
+            sort_prim_ordered(&mut events, &mut Vec::new());
+            assert_eq!(events, expected, "{len} events, spread {spread}");
         }
-        let mut expected = events.clone();
-        expected.sort_unstable();
-        sort_prim_ordered(&mut events, &mut Vec::new());
-        assert_eq!(events, expected);
     }
 
     #[test]
