@@ -261,9 +261,10 @@ impl Fork for BinnedTop<'_> {
 /// The node's references split between its children by the sweep's rules ([`route`]).
 fn partition(ctx: &Ctx, node: Refs, split: &Split) -> [Refs; 2] {
     let (left_box, right_box) = node.bounds.split(split.axis, split.pos);
-    let child = |cap: u32, bounds| Refs {
-        ids: Vec::with_capacity(cap as usize),
-        boxes: Vec::with_capacity(cap as usize),
+    // One spare slot each, for the branch-free split below.
+    let child = |count: u32, bounds| Refs {
+        ids: Vec::with_capacity(count as usize + 1),
+        boxes: Vec::with_capacity(count as usize + 1),
         bounds,
         depth: node.depth + 1,
     };
@@ -271,13 +272,54 @@ fn partition(ctx: &Ctx, node: Refs, split: &Split) -> [Refs; 2] {
         child(split.n_left, left_box),
         child(split.n_right, right_box),
     ];
-    for (&id, b) in node.ids.iter().zip(&node.boxes) {
-        route(ctx, id, b, &node.bounds, split, |side, b| {
-            sides[side].ids.push(id);
-            sides[side].boxes.push(b);
-        });
+    if ctx.options.clip {
+        for (&id, b) in node.ids.iter().zip(&node.boxes) {
+            route(ctx, id, b, &node.bounds, split, |side, b| {
+                sides[side].ids.push(id);
+                sides[side].boxes.push(b);
+            });
+        }
+    } else {
+        split_unclipped(&node, split, &mut sides);
     }
     sides
+}
+
+/// [`partition`] without clipping: every reference goes whole to each side [`route`] sends
+/// it to, so the children hold exactly the split's counts. Each reference is written to both
+/// children's next free slot and each cursor advances only where the reference belongs,
+/// which spends no branch on the side (the sides of a big node's references are not
+/// predictable).
+fn split_unclipped(node: &Refs, split: &Split, sides: &mut [Refs; 2]) {
+    let (axis, pos, planar_left) = (split.axis, split.pos, split.planar_left);
+    let [left, right] = sides;
+    let (mut nl, mut nr) = (0, 0);
+    {
+        let (left_ids, left_boxes) = (left.ids.spare_capacity_mut(), left.boxes.spare_capacity_mut());
+        let (right_ids, right_boxes) =
+            (right.ids.spare_capacity_mut(), right.boxes.spare_capacity_mut());
+        for (&id, b) in node.ids.iter().zip(&node.boxes) {
+            let (lo, hi) = (b.lo[axis], b.hi[axis]);
+            let in_plane = lo == pos && hi == pos;
+            let to_left = lo < pos || (in_plane && planar_left);
+            let to_right = hi > pos || (in_plane && !planar_left);
+            left_ids[nl].write(id);
+            left_boxes[nl].write(*b);
+            right_ids[nr].write(id);
+            right_boxes[nr].write(*b);
+            nl += to_left as usize;
+            nr += to_right as usize;
+        }
+    }
+    debug_assert_eq!((nl, nr), (split.n_left as usize, split.n_right as usize));
+    // SAFETY: every slot below each cursor was written (a cursor moves past a slot only after
+    // writing it), and the writes were bounds-checked against the spare capacity.
+    unsafe {
+        left.ids.set_len(nl);
+        left.boxes.set_len(nl);
+        right.ids.set_len(nr);
+        right.boxes.set_len(nr);
+    }
 }
 
 /// Sends reference `id` (box `b`) of `node` to the children of `split` by the sweep's rules:
@@ -396,35 +438,60 @@ impl Histograms {
         let mut h = Histograms {
             lo: vec![0; m + 1],
             hi: vec![0; m + 1],
-            planar: vec![0; m],
+            planar: vec![0; m + 1],
         };
+        // The boundaries between sentinels: `bound[k]` is boundary `k - 1`, so that the
+        // searches below stop at either end without a test of the index.
+        let mut bound = Vec::with_capacity(m + 2);
+        bound.push(f32::NEG_INFINITY);
+        bound.extend_from_slice(planes);
+        bound.push(f32::INFINITY);
         // The bin a value falls in, guessed by arithmetic, then made exact by comparing with
         // the boundaries themselves (usually no step), so that the counts are the exact ones.
         let origin = node.lo[axis];
         let scale = bins as f32 / (node.hi[axis] - origin);
-        let guess = |x: f32| (((x - origin) * scale).max(0.0) as usize).min(m);
+        let last = m as f32;
+        let guess = |x: f32| {
+            let g = (x - origin) * scale;
+            // In [0, m] and not NaN (a NaN fails `g > 0.0`), so the conversion is exact.
+            let g = if g > 0.0 { g } else { 0.0 };
+            let g = if g < last { g } else { last };
+            // SAFETY: `g` is finite and in [0, m], which `u32` holds.
+            unsafe { g.to_int_unchecked::<u32>() as usize }
+        };
+        // Every index below is kept in [0, m] by the sentinels (`bound[k]` and `bound[k + 1]`
+        // with `bound.len() == m + 2`), and the counts have `m + 1` entries: the bound checks
+        // were a third of this loop's instructions.
+        let (lo_count, hi_count, planar) = (&mut h.lo[..], &mut h.hi[..], &mut h.planar[..]);
+        debug_assert!(bound.len() == m + 2 && lo_count.len() == m + 1 && hi_count.len() == m + 1);
         for b in boxes {
             let (lo, hi) = (b.lo[axis], b.hi[axis]);
-            let mut k = guess(lo);
-            while k > 0 && planes[k - 1] > lo {
-                k -= 1;
+            // SAFETY: see above; `guess` is at most `m`, and each loop stops at a sentinel.
+            unsafe {
+                let at = |k: usize| *bound.get_unchecked(k);
+                // `k` boundaries at or below `lo`.
+                let mut k = guess(lo);
+                while at(k) > lo {
+                    k -= 1;
+                }
+                while at(k + 1) <= lo {
+                    k += 1;
+                }
+                *lo_count.get_unchecked_mut(k) += 1;
+                // A flat box lying in boundary `k - 1` is counted at `k`; `planar[0]` is unused.
+                *planar.get_unchecked_mut(k) += (lo == hi && at(k) == lo) as u32;
+                // `k` boundaries strictly below `hi`.
+                let mut k = guess(hi);
+                while at(k) >= hi {
+                    k -= 1;
+                }
+                while at(k + 1) < hi {
+                    k += 1;
+                }
+                *hi_count.get_unchecked_mut(k) += 1;
             }
-            while k < m && planes[k] <= lo {
-                k += 1;
-            }
-            h.lo[k] += 1;
-            if lo == hi && k > 0 && planes[k - 1] == lo {
-                h.planar[k - 1] += 1;
-            }
-            let mut k = guess(hi);
-            while k > 0 && planes[k - 1] >= hi {
-                k -= 1;
-            }
-            while k < m && planes[k] < hi {
-                k += 1;
-            }
-            h.hi[k] += 1;
         }
+        h.planar.remove(0);
         h
     }
 
