@@ -295,9 +295,14 @@ fn split_unclipped(node: &Refs, split: &Split, sides: &mut [Refs; 2]) {
     let [left, right] = sides;
     let (mut nl, mut nr) = (0, 0);
     {
-        let (left_ids, left_boxes) = (left.ids.spare_capacity_mut(), left.boxes.spare_capacity_mut());
-        let (right_ids, right_boxes) =
-            (right.ids.spare_capacity_mut(), right.boxes.spare_capacity_mut());
+        let (left_ids, left_boxes) = (
+            left.ids.spare_capacity_mut(),
+            left.boxes.spare_capacity_mut(),
+        );
+        let (right_ids, right_boxes) = (
+            right.ids.spare_capacity_mut(),
+            right.boxes.spare_capacity_mut(),
+        );
         for (&id, b) in node.ids.iter().zip(&node.boxes) {
             let (lo, hi) = (b.lo[axis], b.hi[axis]);
             let in_plane = lo == pos && hi == pos;

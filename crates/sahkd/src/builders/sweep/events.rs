@@ -162,7 +162,14 @@ mod tests {
         // Lengths on both sides of the comparison-sort cut and of the narrow digits; positions
         // few and across zero (kinds and prims decide many comparisons), in a narrow range far
         // from zero (keys sharing their upper bits), all equal, and spread over many exponents.
-        for (len, spread) in [(5000, 0), (300, 1), (9000, 1), (2000, 2), (700, 3), (20_000, 3)] {
+        for (len, spread) in [
+            (5000, 0),
+            (300, 1),
+            (9000, 1),
+            (2000, 2),
+            (700, 3),
+            (20_000, 3),
+        ] {
             let mut events = Vec::new();
             for prim in 0..len as u32 {
                 let r = next();
@@ -170,7 +177,10 @@ mod tests {
                     0 => (r % 40) as f32 - 20.0,
                     1 => 1000.0 + (r % 5000) as f32 / 4096.0,
                     2 => 3.5,
-                    _ => f32::from_bits(0x3000_0000 + (r as u32 % 0x1800_0000)) * [1.0, -1.0][prim as usize % 2],
+                    _ => {
+                        f32::from_bits(0x3000_0000 + (r as u32 % 0x1800_0000))
+                            * [1.0, -1.0][prim as usize % 2]
+                    }
                 };
                 events.push(Event::new(pos, (next() % 3) as u32, prim));
             }

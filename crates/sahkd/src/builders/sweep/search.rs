@@ -5,7 +5,7 @@
 //! `p` are the primitives with `lo < p`; `R` starts at `n` and drops by the ends and planars
 //! at or before `p`. The planars at `p` are `P`.
 
-use super::events::{self, plane_bits, Event, END, PLANAR};
+use super::events::{self, plane_bits, Event, END, PLANAR, START};
 pub(super) use crate::builders::choice::Split;
 use crate::builders::event::unordered;
 use crate::builders::Axes;
@@ -83,32 +83,111 @@ fn sweep_axis<const AXIS: usize>(
     // What the price depends on only through the node, computed once per sweep, not per
     // candidate (the same bits: `splits_of` is what `split_cost` calls).
     let splits = cost.splits_of(node, axis);
-    // Candidates must lie strictly inside the node; compare keys, not floats.
+    // Candidates lie strictly inside the node (compare keys, not floats), and the events are
+    // sorted: those at or below the node's low face only count, those at or beyond its high
+    // face do not matter, and no test of the range is left in the loop over groups (it
+    // mispredicted on every group crossing a face).
     let (lo_key, hi_key) = (plane_bits(node.lo[axis]), plane_bits(node.hi[axis]));
+    let first = events.partition_point(|e| e.pos_bits() <= lo_key);
+    let last = first + events[first..].partition_point(|e| e.pos_bits() < hi_key);
     let (mut below, mut above) = (0u32, n);
+    for e in &events[..first] {
+        below += (e.kind() != END) as u32;
+        above -= (e.kind() != START) as u32;
+    }
+    let inside = &events[first..last];
     let mut i = 0;
-    while i < events.len() {
-        let key = events[i].pos_bits();
-        // Ends (low half) and planars (high half) of the group, counted in one register so
-        // that the hot loop does no stores; starts are the rest of the group.
-        let group_start = i;
-        let mut packed = 0u64;
-        while i < events.len() && events[i].pos_bits() == key {
-            let k = events[i].kind();
-            packed += (k == END) as u64 | ((k == PLANAR) as u64) << 32;
-            i += 1;
-        }
-        let (ends, planar) = (packed as u32, (packed >> 32) as u32);
-        let starts = (i - group_start) as u32 - ends - planar;
+    while i < inside.len() {
+        let key = inside[i].pos_bits();
+        let (count, ends, planar) = group(&inside[i..], key);
+        i += count;
+        let starts = count as u32 - ends - planar;
         above -= ends + planar;
-        if key > lo_key && key < hi_key {
-            let candidate = priced(&splits, axis, unordered(key), below, above, planar);
-            if candidate.beats(best) {
-                *best = Some(candidate);
-            }
+        let candidate = priced(&splits, axis, unordered(key), below, above, planar);
+        if candidate.beats(best) {
+            *best = Some(candidate);
         }
         below += starts + planar;
     }
+}
+
+/// The events at the head of `events` whose position is `key` (the first one's): how many,
+/// and how many of them are ends and planars.
+///
+/// A position's group is mostly one to four events, and a loop stopping at its end
+/// mispredicted that end about once per group (over 40 % of a build's mispredicted
+/// branches). Here eight events are compared at once ([`masks8`]) and the group is the run of
+/// matches from the first. Within a group the events are sorted by kind, ends first, then
+/// planars, then starts (`END < PLANAR < START`), so the ends and planars are runs too.
+#[inline(always)]
+fn group(events: &[Event], key: u32) -> (usize, u32, u32) {
+    let (mut count, mut ends, mut ends_planars) = (0, 0, 0);
+    while let Some(chunk) = events.get(count..count + 8) {
+        let (same, end, end_or_flat) = masks8(chunk.try_into().expect("eight events"), key);
+        let run = leading_run(same);
+        ends += leading_run(end).min(run);
+        ends_planars += leading_run(end_or_flat).min(run);
+        count += run as usize;
+        if run < 8 {
+            return (count, ends, ends_planars - ends);
+        }
+    }
+    let (mut planar, rest) = (ends_planars - ends, &events[count..]);
+    for e in rest.iter().take_while(|e| e.pos_bits() == key) {
+        let k = e.kind();
+        ends += (k == END) as u32;
+        planar += (k == PLANAR) as u32;
+        count += 1;
+    }
+    (count, ends, planar)
+}
+
+/// The trailing ones of an 8-bit mask (8 when all are set). The set bit above the mask tells
+/// the compiler the count is below 32, which spares the branch `trailing_ones` takes for an
+/// all-ones word on CPUs without a trailing-zero count instruction.
+#[inline(always)]
+fn leading_run(mask: u32) -> u32 {
+    (!mask | 0x100).trailing_zeros()
+}
+
+/// Bit `j` set where event `j` has position `key`, is an end, is an end or a planar.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn masks8(chunk: &[Event; 8], key: u32) -> (u32, u32, u32) {
+    use std::arch::x86_64::*;
+    const _: () = assert!(END == 0 && PLANAR == 1 && START == 2);
+    const _: () = assert!(std::mem::size_of::<Event>() == 8);
+    // SAFETY: SSE2 is part of x86_64; the loads read the 64 bytes of `chunk` (unaligned).
+    unsafe {
+        let p = chunk.as_ptr() as *const __m128i;
+        let key = _mm_set1_epi32(key as i32);
+        let mut masks = [0u32; 3];
+        for half in 0..2 {
+            let a = _mm_castsi128_ps(_mm_loadu_si128(p.add(2 * half)));
+            let b = _mm_castsi128_ps(_mm_loadu_si128(p.add(2 * half + 1)));
+            // Four events' upper words (positions) and lower words (kind in the top two bits).
+            let pos = _mm_castps_si128(_mm_shuffle_ps::<0b11_01_11_01>(a, b));
+            let low = _mm_castps_si128(_mm_shuffle_ps::<0b10_00_10_00>(a, b));
+            let kind = _mm_srli_epi32::<30>(low);
+            let bits = |m: __m128i| (_mm_movemask_ps(_mm_castsi128_ps(m)) as u32) << (4 * half);
+            masks[0] |= bits(_mm_cmpeq_epi32(pos, key));
+            masks[1] |= bits(_mm_cmpeq_epi32(kind, _mm_setzero_si128()));
+            masks[2] |= bits(_mm_cmplt_epi32(kind, _mm_set1_epi32(2)));
+        }
+        (masks[0], masks[1], masks[2])
+    }
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn masks8(chunk: &[Event; 8], key: u32) -> (u32, u32, u32) {
+    let mut masks = [0u32; 3];
+    for (j, e) in chunk.iter().enumerate() {
+        masks[0] |= ((e.pos_bits() == key) as u32) << j;
+        masks[1] |= ((e.kind() == END) as u32) << j;
+        masks[2] |= ((e.kind() < START) as u32) << j;
+    }
+    (masks[0], masks[1], masks[2])
 }
 
 /// The plane at `pos` with `below` primitives starting left of it, `above` ending right of
@@ -194,6 +273,31 @@ mod tests {
             }
         }
         best
+    }
+
+    #[test]
+    fn groups_are_counted_as_one_event_at_a_time_counts_them() {
+        // Runs of every length from 1 to 20 at one position, of mixed kinds in the sweep's
+        // order, then one event elsewhere, seen from every start and with every tail cut.
+        let kinds = [END, END, PLANAR, START, START, START, END, PLANAR];
+        for len in 1..=20usize {
+            let mut list: Vec<Event> = (0..len as u32)
+                .map(|i| Event::new(2.0, kinds[(i as usize * 5 + len) % 8], i))
+                .collect();
+            list.push(Event::new(3.0, START, 99));
+            list.sort_unstable();
+            for from in 0..list.len() {
+                for to in from + 1..=list.len() {
+                    let events = &list[from..to];
+                    let key = events[0].pos_bits();
+                    let run: Vec<&Event> =
+                        events.iter().take_while(|e| e.pos_bits() == key).collect();
+                    let count = |k| run.iter().filter(|e| e.kind() == k).count() as u32;
+                    let want = (run.len(), count(END), count(PLANAR));
+                    assert_eq!(group(events, key), want, "run {len}, events {from}..{to}");
+                }
+            }
+        }
     }
 
     #[test]
