@@ -86,15 +86,25 @@ fn sweep_axis<const AXIS: usize>(
     // Candidates lie strictly inside the node (compare keys, not floats), and the events are
     // sorted: those at or below the node's low face only count, those at or beyond its high
     // face do not matter, and no test of the range is left in the loop over groups (it
-    // mispredicted on every group crossing a face).
+    // mispredicted on every group crossing a face). Few events lie outside a node, so plain
+    // scans find them (a binary search mispredicts about half its steps).
     let (lo_key, hi_key) = (plane_bits(node.lo[axis]), plane_bits(node.hi[axis]));
-    let first = events.partition_point(|e| e.pos_bits() <= lo_key);
-    let last = first + events[first..].partition_point(|e| e.pos_bits() < hi_key);
     let (mut below, mut above) = (0u32, n);
-    for e in &events[..first] {
+    let mut first = 0;
+    while let Some(e) = events.get(first).filter(|e| e.pos_bits() <= lo_key) {
         below += (e.kind() != END) as u32;
         above -= (e.kind() != START) as u32;
+        first += 1;
     }
+    let mut last = events.len();
+    while last > first && events[last - 1].pos_bits() >= hi_key {
+        last -= 1;
+    }
+    // The axis's cheapest plane, kept by selects rather than a branch per improvement (the
+    // costs along an axis fall and rise unevenly, so that branch mispredicted often): the
+    // first of equal costs, which is the one ranking's choice, since positions increase
+    // here. Its split is priced again from the counts kept, the same bits.
+    let (mut cheapest, mut at) = (f32::INFINITY, (0u32, 0u32, 0u32, 0u32));
     let inside = &events[first..last];
     let mut i = 0;
     while i < inside.len() {
@@ -103,11 +113,25 @@ fn sweep_axis<const AXIS: usize>(
         i += count;
         let starts = count as u32 - ends - planar;
         above -= ends + planar;
+        let cost = priced(&splits, axis, unordered(key), below, above, planar).cost;
+        // Masks, not `if`: the compiler made a branch of the plain select.
+        let keep = ((cost < cheapest) as u32).wrapping_neg();
+        let pick = |new: u32, old: u32| (new & keep) | (old & !keep);
+        cheapest = cost.min(cheapest);
+        at = (
+            pick(key, at.0),
+            pick(below, at.1),
+            pick(above, at.2),
+            pick(planar, at.3),
+        );
+        below += starts + planar;
+    }
+    if cheapest < f32::INFINITY {
+        let (key, below, above, planar) = at;
         let candidate = priced(&splits, axis, unordered(key), below, above, planar);
         if candidate.beats(best) {
             *best = Some(candidate);
         }
-        below += starts + planar;
     }
 }
 
