@@ -159,9 +159,9 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             seed >> 33
         };
-        // Lengths on both sides of the comparison-sort cut and of the narrow digits; positions
-        // few and across zero (kinds and prims decide many comparisons), in a narrow range far
-        // from zero (keys sharing their upper bits), all equal, and spread over many exponents.
+        // Lengths on both sides of the comparison-sort cut; positions few and across zero
+        // (kinds and prims decide many comparisons), in a narrow range far from zero (keys
+        // sharing their upper bits: fewer passes), all equal (none), and over many exponents.
         for (len, spread) in [
             (5000, 0),
             (300, 1),

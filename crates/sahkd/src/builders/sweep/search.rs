@@ -148,9 +148,9 @@ fn group(events: &[Event], key: u32) -> (usize, u32, u32) {
     let (mut count, mut ends, mut ends_planars) = (0, 0, 0);
     while let Some(chunk) = events.get(count..count + 8) {
         let (same, end, end_or_flat) = masks8(chunk.try_into().expect("eight events"), key);
-        let run = leading_run(same);
-        ends += leading_run(end).min(run);
-        ends_planars += leading_run(end_or_flat).min(run);
+        let run = same.trailing_ones();
+        ends += end.trailing_ones().min(run);
+        ends_planars += end_or_flat.trailing_ones().min(run);
         count += run as usize;
         if run < 8 {
             return (count, ends, ends_planars - ends);
@@ -164,14 +164,6 @@ fn group(events: &[Event], key: u32) -> (usize, u32, u32) {
         count += 1;
     }
     (count, ends, planar)
-}
-
-/// The trailing ones of an 8-bit mask (8 when all are set). The set bit above the mask tells
-/// the compiler the count is below 32, which spares the branch `trailing_ones` takes for an
-/// all-ones word on CPUs without a trailing-zero count instruction.
-#[inline(always)]
-fn leading_run(mask: u32) -> u32 {
-    (!mask | 0x100).trailing_zeros()
 }
 
 /// Bit `j` set where event `j` has position `key`, is an end, is an end or a planar.
