@@ -4,7 +4,7 @@
 //! cargo run --release -p sahkd --example trace_throughput -- MESH [--camera front|near|auto]
 //!     [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR]
 //!     [--sets primary,shadow,ao,bounce] [--no-count] [--preset NAME] [--traversal-cost X]
-//!     [--empty-bonus X] [--bins N] [--clip on|off]
+//!     [--empty-bonus X] [--bins N] [--clip on|off] [--walk kd|single|wide]
 //! ```
 //! The tree is built with the default options (or the preset named), with the cost model's
 //! traversal cost and empty-space bonus, the bins and the clipping given after it.
@@ -22,6 +22,9 @@
 //! with nodes visited, leaves entered and triangles tested per ray from one counting pass.
 //! `--sets` times only the sets named, `--no-count` skips the counting pass (both for
 //! profiling one set's batch calls, e.g. under callgrind).
+//! `--walk` picks what is timed: `kd` (default) the batch calls' packets, `single` the kd walk
+//! one ray at a time, `wide` the 8-wide layout (`sahkd::trace::wide`) one ray at a time, whose
+//! answers the counting pass checks against the kd walk's.
 //! `--dump DIR` writes the mesh (vertices and faces), its triangles, every set and sahkd's answers as `.npy` files for
 //! `scripts/embree_throughput.py`, which traces the very same rays with Embree.
 
@@ -41,6 +44,8 @@ struct Args {
     sets: Option<Vec<String>>,
     count: bool,
     options: BuildOptions,
+    wide: bool,
+    single: bool,
 }
 
 fn parse_args() -> Result<Args, String> {
@@ -54,6 +59,8 @@ fn parse_args() -> Result<Args, String> {
         sets: None,
         count: true,
         options: BuildOptions::default(),
+        wide: false,
+        single: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
@@ -79,6 +86,12 @@ fn parse_args() -> Result<Args, String> {
             "--dump" => args.dump = Some(value("--dump")?),
             "--sets" => args.sets = Some(value("--sets")?.split(',').map(String::from).collect()),
             "--no-count" => args.count = false,
+            "--walk" => match value("--walk")?.as_str() {
+                "kd" => {}
+                "single" => args.single = true,
+                "wide" => args.wide = true,
+                w => return Err(format!("--walk: expected kd, single or wide, got {w}")),
+            },
             "--preset" => {
                 // Options given before it are replaced by the preset's; give them after it.
                 args.options = value("--preset")?
@@ -115,7 +128,7 @@ fn parse_args() -> Result<Args, String> {
         }
     }
     if args.mesh.is_empty() {
-        return Err("usage: trace_throughput MESH [--camera front|near|auto] [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR] [--sets primary,shadow,ao,bounce] [--no-count] [--preset NAME] [--traversal-cost X] [--empty-bonus X] [--bins N] [--clip on|off]".into());
+        return Err("usage: trace_throughput MESH [--camera front|near|auto] [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR] [--sets primary,shadow,ao,bounce] [--no-count] [--preset NAME] [--traversal-cost X] [--empty-bonus X] [--bins N] [--clip on|off] [--walk kd|single|wide]".into());
     }
     if args.threads.contains(&0) || args.repeat == 0 || args.size == 0 {
         return Err("--threads, --repeat and --size must be at least 1".into());
@@ -134,6 +147,14 @@ fn throughput(rays: usize, repeat: usize, mut f: impl FnMut()) -> (f64, f64, f64
         .collect();
     rates.sort_by(f64::total_cmp);
     (rates[rates.len() / 2], rates[0], rates[rates.len() - 1])
+}
+
+/// Answers `rays` one at a time by `f` on the current pool's threads, as a caller without
+/// the batch calls would.
+fn one_by_one<T: Send>(rays: &[Ray], f: impl Fn(&Ray) -> T + Sync + Send) {
+    use rayon::prelude::*;
+    let answers: Vec<T> = rays.par_iter().with_min_len(256).map(f).collect();
+    std::hint::black_box(answers);
 }
 
 /// A little-endian float32 `.npy` file of the given shape.
@@ -300,6 +321,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         light.0,
         args.repeat
     );
+    let wide = args.wide.then(|| {
+        let start = Instant::now();
+        let w = sahkd::trace::wide::WideBvh::new(&tree);
+        println!(
+            "wide: {} nodes, {:.1} MB ({:.1} B/tri), made in {:.3} s",
+            w.len(),
+            w.bytes() as f64 / 1e6,
+            w.bytes() as f64 / tree.triangles().len() as f64,
+            start.elapsed().as_secs_f64()
+        );
+        w
+    });
     for set in &sets {
         if args
             .sets
@@ -312,24 +345,48 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // which the packets' lanes follow exactly.
         let mut stats = TraceStats::default();
         let mut found = 0usize;
+        let mut differ = 0usize;
         for r in set.rays.iter().filter(|_| args.count) {
-            found += match set.query {
-                Query::Closest => tree.intersect_counted(r, &mut stats).is_some(),
-                Query::Any => tree.occluded_counted(r, &mut stats),
+            found += match (set.query, &wide) {
+                (Query::Closest, None) => tree.intersect_counted(r, &mut stats).is_some(),
+                (Query::Any, None) => tree.occluded_counted(r, &mut stats),
+                (Query::Closest, Some(w)) => {
+                    let h = w.intersect_counted(r, &mut stats);
+                    differ += (h != tree.intersect(r)) as usize;
+                    h.is_some()
+                }
+                (Query::Any, Some(w)) => {
+                    let h = w.occluded_counted(r, &mut stats);
+                    differ += (h != tree.occluded(r)) as usize;
+                    h
+                }
             } as usize;
+        }
+        if differ > 0 {
+            println!("{}: {differ} answers differ from the kd walk", set.name);
         }
         let count = set.rays.len().max(1) as f64;
         for &threads in &args.threads {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()?;
-            let rate = throughput(set.rays.len(), args.repeat, || match set.query {
-                Query::Closest => {
-                    std::hint::black_box(pool.install(|| tree.intersect_batch(&set.rays)));
-                }
-                Query::Any => {
-                    std::hint::black_box(pool.install(|| tree.occluded_batch(&set.rays)));
-                }
+            let rate = throughput(set.rays.len(), args.repeat, || {
+                pool.install(|| match (set.query, &wide) {
+                    (Query::Closest, Some(w)) => one_by_one(&set.rays, |r| w.intersect(r)),
+                    (Query::Any, Some(w)) => one_by_one(&set.rays, |r| w.occluded(r)),
+                    (Query::Closest, None) if args.single => {
+                        one_by_one(&set.rays, |r| tree.intersect(r))
+                    }
+                    (Query::Any, None) if args.single => {
+                        one_by_one(&set.rays, |r| tree.occluded(r))
+                    }
+                    (Query::Closest, None) => {
+                        std::hint::black_box(tree.intersect_batch(&set.rays));
+                    }
+                    (Query::Any, None) => {
+                        std::hint::black_box(tree.occluded_batch(&set.rays));
+                    }
+                })
             });
             println!(
                 "{:>7} ({}): {:>8} rays, {:5.1}% hit, {threads} thread(s), {:6.2} Mrays/s median ({:.2}-{:.2}), {:.1} nodes, {:.2} leaves, {:.2} triangles per ray",

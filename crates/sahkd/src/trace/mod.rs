@@ -24,6 +24,8 @@ pub mod brute;
 mod packet;
 pub mod precise;
 mod triangle;
+#[doc(hidden)]
+pub mod wide;
 
 use crate::tree::layout;
 
