@@ -9,7 +9,7 @@
 //! triangles (children holding nothing are dropped). Leaves are runs of the trace layout's
 //! words, tested as the kd walk tests them, so the answers are the kd walk's; a child's box
 //! is padded so that the float32 slab test cannot miss a hit on its border, and the walk
-//! keeps the pending children sorted by entry distance, nearest on top.
+//! keeps the pending children of a closest-hit walk sorted by entry distance, nearest on top.
 //!
 //! Not yet walked by the public queries: `examples/trace_throughput --walk wide` measures it
 //! against the kd walk's packets and single rays (BENCHMARKS.md, "A wide layout").
@@ -373,7 +373,7 @@ impl<'a> WideBvh<'a> {
     pub fn intersect_counted(&self, ray: &Ray, counters: &mut impl TraceCounters) -> Option<Hit> {
         let layout = self.tree.trace_layout();
         let mut closest = Closest::new(self.tree.triangles(), ray, layout.scale, layout.reach);
-        self.walk(ray, counters, |hit, limit| {
+        self.walk::<true>(ray, counters, |hit, limit| {
             closest.offer(hit, limit);
             false
         });
@@ -382,7 +382,7 @@ impl<'a> WideBvh<'a> {
 
     pub fn occluded_counted(&self, ray: &Ray, counters: &mut impl TraceCounters) -> bool {
         let mut found = false;
-        self.walk(ray, counters, |_, _| {
+        self.walk::<false>(ray, counters, |_, _| {
             found = true;
             true
         });
@@ -397,8 +397,10 @@ impl<'a> WideBvh<'a> {
         self.occluded_counted(ray, &mut ())
     }
 
+    /// The walk; `ORDERED` keeps the pending children sorted by entry distance, which a
+    /// closest hit needs to stop early and an any hit does not (it stops at any hit).
     #[inline(always)]
-    fn walk(
+    fn walk<const ORDERED: bool>(
         &self,
         ray: &Ray,
         counters: &mut impl TraceCounters,
@@ -410,27 +412,27 @@ impl<'a> WideBvh<'a> {
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked just above).
-            return unsafe { self.walk_avx2(ray, counters, visit) };
+            return unsafe { self.walk_avx2::<ORDERED>(ray, counters, visit) };
         }
-        self.walk_any::<false>(ray, counters, visit)
+        self.walk_any::<false, ORDERED>(ray, counters, visit)
     }
 
     /// The walk compiled for AVX2: a node's eight slab tests become vector operations.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn walk_avx2(
+    unsafe fn walk_avx2<const ORDERED: bool>(
         &self,
         ray: &Ray,
         counters: &mut impl TraceCounters,
         visit: impl FnMut(Hit, &mut f32) -> bool,
     ) {
-        self.walk_any::<true>(ray, counters, visit)
+        self.walk_any::<true, ORDERED>(ray, counters, visit)
     }
 
     /// The walk; `AVX2` (only from [`Self::walk_avx2`]) tests a node's boxes in AVX2
-    /// vector operations.
+    /// vector operations, `ORDERED` as in [`Self::walk`].
     #[inline(always)]
-    fn walk_any<const AVX2: bool>(
+    fn walk_any<const AVX2: bool, const ORDERED: bool>(
         &self,
         ray: &Ray,
         counters: &mut impl TraceCounters,
@@ -474,12 +476,13 @@ impl<'a> WideBvh<'a> {
                         cur = first;
                         continue;
                     }
-                    // Two or more: all pushed, sorted so that the nearest is popped first.
+                    // Two or more: all pushed; ordered, sorted so that the nearest is popped
+                    // first.
                     let base = top;
                     let mut push = |e: Entry, top: &mut usize| {
                         let mut j = *top;
                         // SAFETY: entries from `base` to `top` were written by this push.
-                        while j > base && unsafe { stack[j - 1].assume_init() }.t < e.t {
+                        while ORDERED && j > base && unsafe { stack[j - 1].assume_init() }.t < e.t {
                             stack[j] = stack[j - 1];
                             j -= 1;
                         }
@@ -600,7 +603,7 @@ mod tests {
             let ray = Ray::new(o, d);
             let layout = tree.trace_layout();
             let mut closest = Closest::new(tree.triangles(), &ray, layout.scale, layout.reach);
-            wide.walk_any::<false>(&ray, &mut (), |hit, limit| {
+            wide.walk_any::<false, true>(&ray, &mut (), |hit, limit| {
                 closest.offer(hit, limit);
                 false
             });
