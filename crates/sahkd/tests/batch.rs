@@ -107,23 +107,6 @@ fn batches_match_brute_force_on_random_scenes() {
     }
 }
 
-fn grid_triangle() -> impl Strategy<Value = sahkd::Triangle> {
-    let coord = (0i32..6).prop_map(|k| k as f32 * 0.25);
-    let corner = [coord.clone(), coord.clone(), coord].prop_map(Vec3);
-    [corner.clone(), corner.clone(), corner]
-}
-
-/// Origins on the grid (on split planes) and directions with zero components of either sign.
-fn grid_ray() -> impl Strategy<Value = Ray> {
-    let coord = (-4i32..10).prop_map(|k| k as f32 * 0.125);
-    let dir = prop_oneof![(-2i32..3).prop_map(|k| k as f32), Just(-0.0f32)];
-    (
-        [coord.clone(), coord.clone(), coord],
-        [dir.clone(), dir.clone(), dir],
-    )
-        .prop_map(|(o, d)| Ray::new(Vec3(o), Vec3(d)))
-}
-
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
     #[test]

@@ -1,5 +1,6 @@
 //! The accelerated queries must equal the naive ones: every builder, every option, random
-//! scenes and real ones, closest hit and any hit against a loop over all triangles.
+//! scenes and real ones, closest hit and any hit against a loop over all triangles, through
+//! the kd walk and the wide layout (`check_oracle`).
 
 mod common;
 
@@ -20,29 +21,6 @@ fn every_builder_matches_brute_force_on_random_scenes() {
             check_oracle(&tree, &rays).unwrap_or_else(|e| panic!("{what}: {e}"));
         }
     }
-}
-
-fn bounds_of(tris: &[sahkd::Triangle]) -> sahkd::Aabb {
-    tris.iter().fold(sahkd::Aabb::EMPTY, |b, t| {
-        b.union(sahkd::geometry::triangle_bounds(t))
-    })
-}
-
-/// Corners drawn from a small set of values, so coincident and planar events are the rule.
-fn grid_triangle() -> impl Strategy<Value = sahkd::Triangle> {
-    let coord = (0i32..6).prop_map(|k| k as f32 * 0.25);
-    let corner = [coord.clone(), coord.clone(), coord].prop_map(Vec3);
-    [corner.clone(), corner.clone(), corner]
-}
-
-fn grid_ray() -> impl Strategy<Value = Ray> {
-    let coord = (-4i32..10).prop_map(|k| k as f32 * 0.125 + 0.0);
-    let dir = (-2i32..3).prop_map(|k| k as f32);
-    (
-        [coord.clone(), coord.clone(), coord],
-        [dir.clone(), dir.clone(), dir],
-    )
-        .prop_map(|(o, d)| Ray::new(Vec3(o), Vec3(d)))
 }
 
 proptest! {

@@ -1,9 +1,11 @@
 //! Shared helpers of the integration tests: scenes, rays and the brute-force oracle.
 #![allow(dead_code)]
 
+use proptest::prelude::*;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use sahkd::trace::brute;
+use sahkd::trace::wide::WideBvh;
 use sahkd::{Aabb, Algorithm, Axes, BuildOptions, Counting, KdTree, Mesh, Ray, Triangle, Vec3};
 use std::path::PathBuf;
 
@@ -167,11 +169,25 @@ pub fn random_rays(rng: &mut StdRng, bounds: &Aabb, n: usize) -> Vec<Ray> {
         .collect()
 }
 
-/// Compares the tree's answers with the brute force on every ray. The hit must be the same
-/// to the bit: both use one triangle test, so any difference is a traversal or tree bug.
+/// Compares the tree's answers with the brute force on every ray, through the kd walk and the
+/// wide layout made from the tree. The hit must be the same to the bit: all use one triangle
+/// test, so any difference is a traversal or tree bug.
 pub fn check_oracle(tree: &KdTree, rays: &[Ray]) -> Result<(), String> {
     let tris = tree.triangles();
+    let wide = WideBvh::new(tree);
     for (i, ray) in rays.iter().enumerate() {
+        let (got, want) = (wide.intersect(ray), brute::intersect(tris, ray));
+        if got != want {
+            return Err(format!(
+                "ray {i} {ray:?}: the wide walk gives {got:?}, brute force {want:?}"
+            ));
+        }
+        let (got, want) = (wide.occluded(ray), brute::occluded(tris, ray));
+        if got != want {
+            return Err(format!(
+                "ray {i} {ray:?}: the wide walk says occluded={got}, brute force {want}"
+            ));
+        }
         let got = tree.intersect(ray);
         let want = brute::intersect(tris, ray);
         if got != want {
@@ -308,4 +324,30 @@ pub fn describe(o: &BuildOptions) -> String {
         "{:?} axes={:?} counting={:?} clip={}{large}{bins}",
         o.algorithm, o.axes, o.counting, o.clip
     )
+}
+
+/// Triangles with corners drawn from a small set of values, so coincident and planar events,
+/// ties and rays lying in split planes are the rule.
+pub fn grid_triangle() -> impl Strategy<Value = Triangle> {
+    let coord = (0i32..6).prop_map(|k| k as f32 * 0.25);
+    let corner = [coord.clone(), coord.clone(), coord].prop_map(Vec3);
+    [corner.clone(), corner.clone(), corner]
+}
+
+/// Origins on the grid (on split planes) and directions with zero components of either sign.
+pub fn grid_ray() -> impl Strategy<Value = Ray> {
+    let coord = (-4i32..10).prop_map(|k| k as f32 * 0.125);
+    let dir = prop_oneof![(-2i32..3).prop_map(|k| k as f32), Just(-0.0f32)];
+    (
+        [coord.clone(), coord.clone(), coord],
+        [dir.clone(), dir.clone(), dir],
+    )
+        .prop_map(|(o, d)| Ray::new(Vec3(o), Vec3(d)))
+}
+
+/// The box of the triangles.
+pub fn bounds_of(tris: &[Triangle]) -> Aabb {
+    tris.iter().fold(Aabb::EMPTY, |b, t| {
+        b.union(sahkd::geometry::triangle_bounds(t))
+    })
 }
