@@ -334,6 +334,8 @@ struct Entry {
 }
 
 impl<'a> WideBvh<'a> {
+    /// The wide layout of `tree` (made from its trace layout, which this makes if no query
+    /// has yet).
     pub fn new(tree: &'a KdTree) -> WideBvh<'a> {
         let layout = tree.trace_layout();
         let kd = layout.nodes(tree);
@@ -343,7 +345,7 @@ impl<'a> WideBvh<'a> {
             cells: vec![Aabb::EMPTY; kd.len()],
             content: vec![Aabb::EMPTY; kd.len()],
             nodes: Vec::new(),
-            pad: layout.reach * (1.0 / (1 << 20) as f32),
+            pad: layout.reach * WIDEN,
         };
         if !kd.is_empty() && !tree.triangles().is_empty() {
             c.content_of(0, layout.bounds);
@@ -362,14 +364,17 @@ impl<'a> WideBvh<'a> {
         self.nodes.len() * std::mem::size_of::<WideNode>()
     }
 
+    /// The number of wide nodes.
     pub fn len(&self) -> usize {
         self.nodes.len()
     }
 
+    /// True for a tree with nothing to hit.
     pub fn is_empty(&self) -> bool {
         self.nodes.is_empty()
     }
 
+    /// [`Self::intersect`], counting wide nodes visited, leaves entered and triangles tested.
     pub fn intersect_counted(&self, ray: &Ray, counters: &mut impl TraceCounters) -> Option<Hit> {
         let layout = self.tree.trace_layout();
         let mut closest = Closest::new(self.tree.triangles(), ray, layout.scale, layout.reach);
@@ -380,6 +385,7 @@ impl<'a> WideBvh<'a> {
         closest.best()
     }
 
+    /// [`Self::occluded`], counting as [`Self::intersect_counted`] does.
     pub fn occluded_counted(&self, ray: &Ray, counters: &mut impl TraceCounters) -> bool {
         let mut found = false;
         self.walk::<false>(ray, counters, |_, _| {
@@ -389,10 +395,12 @@ impl<'a> WideBvh<'a> {
         found
     }
 
+    /// The closest hit in `[ray.t_min, ray.t_max]`: [`KdTree::intersect`]'s answer.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         self.intersect_counted(ray, &mut ())
     }
 
+    /// True when anything is hit in `[ray.t_min, ray.t_max]`: [`KdTree::occluded`]'s answer.
     pub fn occluded(&self, ray: &Ray) -> bool {
         self.occluded_counted(ray, &mut ())
     }
