@@ -52,12 +52,14 @@ pub struct WideBvh<'a> {
     nodes: Vec<WideNode>,
 }
 
-/// Per kd node of the trace layout: its cell and content box (empty when it holds nothing).
+/// Per kd node of the trace layout: its content box (empty when it holds nothing) and, for a
+/// leaf, where its blocks' boxes start in `block_boxes` (one per 4-triangle block, in order).
 struct Collapse<'a> {
     kd: &'a [Node],
     layout: &'a TraceLayout,
-    cells: Vec<Aabb>,
     content: Vec<Aabb>,
+    first_block: Vec<u32>,
+    block_boxes: Vec<Aabb>,
     nodes: Vec<WideNode>,
     pad: f32,
 }
@@ -72,12 +74,19 @@ enum Kid {
 
 impl Collapse<'_> {
     fn content_of(&mut self, i: u32, cell: Aabb) -> Aabb {
-        self.cells[i as usize] = cell;
         let node = self.kd[i as usize];
         let b = if node.is_leaf() {
-            self.blocks(&node, &cell)
-                .into_iter()
-                .fold(Aabb::EMPTY, |b, (_, _, c)| b.union(c))
+            self.first_block[i as usize] = self.block_boxes.len() as u32;
+            let words = self.layout.leaf_words(&node);
+            let mut leaf = Aabb::EMPTY;
+            for block in words.chunks(BLOCK * WORDS) {
+                let b = (0..block.len() / WORDS).fold(Aabb::EMPTY, |b, t| {
+                    b.union(clipped_bounds(&block_record(block, t).corners, &cell))
+                });
+                self.block_boxes.push(b);
+                leaf = leaf.union(b);
+            }
+            leaf
         } else {
             let (l, r) = cell.split(node.axis(), node.split());
             let a = self.content_of(node.left(), l);
@@ -86,23 +95,6 @@ impl Collapse<'_> {
         };
         self.content[i as usize] = b;
         b
-    }
-
-    /// A leaf's blocks: first triangle, count and the box of their triangles clipped to the
-    /// leaf's cell.
-    fn blocks(&self, leaf: &Node, cell: &Aabb) -> Vec<(u32, u32, Aabb)> {
-        let words = self.layout.leaf_words(leaf);
-        words
-            .chunks(BLOCK * WORDS)
-            .enumerate()
-            .map(|(j, block)| {
-                let k = block.len() / WORDS;
-                let b = (0..k).fold(Aabb::EMPTY, |b, t| {
-                    b.union(clipped_bounds(&block_record(block, t).corners, cell))
-                });
-                (leaf.first() + (j * BLOCK) as u32, k as u32, b)
-            })
-            .collect()
     }
 
     fn bounds(&self, kid: &Kid) -> Aabb {
@@ -155,9 +147,13 @@ impl Collapse<'_> {
             };
             let node = self.kd[k as usize];
             if node.is_leaf() {
-                for (first, count, b) in self.blocks(&node, &self.cells[k as usize]) {
+                // Its blocks' boxes, made with its content box.
+                let boxes = &self.block_boxes[self.first_block[k as usize] as usize..];
+                for (j, &b) in boxes.iter().take(self.pieces(&Kid::Kd(k))).enumerate() {
+                    let first = (j * BLOCK) as u32;
                     if !b.is_empty() {
-                        kids.push(Kid::Block(first, count, b));
+                        let count = (node.count() - first).min(BLOCK as u32);
+                        kids.push(Kid::Block(node.first() + first, count, b));
                     }
                 }
             } else {
@@ -342,8 +338,9 @@ impl<'a> WideBvh<'a> {
         let mut c = Collapse {
             kd,
             layout,
-            cells: vec![Aabb::EMPTY; kd.len()],
             content: vec![Aabb::EMPTY; kd.len()],
+            first_block: vec![0; kd.len()],
+            block_boxes: Vec::new(),
             nodes: Vec::new(),
             pad: layout.reach * WIDEN,
         };
