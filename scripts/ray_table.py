@@ -5,7 +5,7 @@ against Embree 4 on the very same rays, every ray type, 1 and 2 threads, in one 
     cargo build --release -p sahkd --example trace_throughput
     crates/sahkd-python/test.sh            # or any venv with the sahkd package installed
     pip install embreex                    # into the same venv
-    VENV/bin/python scripts/ray_table.py [--repeat 3] [--threads 1,2] [--out DIR] [--wide] [CASE ...]
+    VENV/bin/python scripts/ray_table.py [--repeat 3] [--threads 1,2] [--out DIR] [--single] [CASE ...]
 
 A CASE is MESH:CAMERA with MESH a name in ../shared/scenes (or $SAHKD_SCENES) and CAMERA one of
 trace_throughput's (near: 0.75 diagonals in front, front: 2 diagonals, auto: the render's
@@ -14,8 +14,9 @@ sponza_dabrovic from inside. For each case the example builds the default tree, 
 primary rays and the shadow, AO and bounce rays of their hits, times them, and dumps them
 (`--dump`); scripts/embree_throughput.py --sahkd then times Embree and sahkd's Python calls on
 the dumped rays. Prints one markdown table (Mrays/s medians with min-max, ratios of medians)
-and the load average before and after each case. `--wide` also times the example's wide
-layout (`--walk wide`, one ray at a time) on the same rays in the same run, in two more columns.
+and the load average before and after each case. `--single` also times the single-ray calls
+(`--walk single`: the walk of the 8-wide nodes, one ray at a time) on the same rays in the
+same run, in two more columns.
 """
 
 import argparse
@@ -64,10 +65,10 @@ def case(mesh, camera, args):
         args.example, os.path.join(scenes, f"{mesh}.ply"), "--camera", camera, "--threads",
         args.threads, "--repeat", str(args.repeat), "--dump", dump,
     ])
-    wide = run([
+    single = run([
         args.example, os.path.join(scenes, f"{mesh}.ply"), "--camera", camera, "--threads",
-        args.threads, "--repeat", str(args.repeat), "--walk", "wide", "--no-count",
-    ]) if args.wide else ""
+        args.threads, "--repeat", str(args.repeat), "--walk", "single", "--no-count",
+    ]) if args.single else ""
     other = run([
         sys.executable, os.path.join(HERE, "embree_throughput.py"), dump, "--threads", args.threads,
         "--repeat", str(args.repeat), "--sahkd",
@@ -81,10 +82,10 @@ def case(mesh, camera, args):
                 rays=int(m.group(3)), hit=float(m.group(4)), rust=tuple(map(float, m.group(6, 7, 8))),
                 nodes=float(m.group(9)), tris=float(m.group(11)),
             )
-    for line in wide.splitlines():
+    for line in single.splitlines():
         m = RUST.match(line)
         if m:
-            rows[(m.group(1), int(m.group(5)))]["wide"] = tuple(map(float, m.group(6, 7, 8)))
+            rows[(m.group(1), int(m.group(5)))]["single"] = tuple(map(float, m.group(6, 7, 8)))
     current = None
     for line in other.splitlines():
         m = EMBREE.match(line)
@@ -110,15 +111,15 @@ def main():
     p.add_argument("--repeat", type=int, default=3)
     p.add_argument("--threads", default="1,2")
     p.add_argument("--out", default=os.path.join(ROOT, "target", "rays"))
-    p.add_argument("--wide", action="store_true", help="also time the wide layout's walk")
+    p.add_argument("--single", action="store_true", help="also time the single-ray calls")
     p.add_argument("--example", default=os.path.join(ROOT, "target", "release", "examples", "trace_throughput"))
     args = p.parse_args()
     if not os.path.exists(args.example):
         sys.exit(f"{args.example} not found: cargo build --release -p sahkd --example trace_throughput")
-    extra = " sahkd wide | wide / Embree |" if args.wide else ""
+    extra = " sahkd single | single / Embree |" if args.single else ""
     print("| mesh | camera | rays | threads | sahkd Rust | sahkd Python | Embree | Rust / Embree | Python / Rust |"
           + extra + " nodes / triangles per ray |")
-    print("|---" * (10 + 2 * args.wide) + "|")
+    print("|---" * (10 + 2 * args.single) + "|")
     notes = []
     for spec in args.cases:
         mesh, _, camera = spec.partition(":")
@@ -126,14 +127,14 @@ def main():
         for (name, threads), r in rows.items():
             ratio = r["rust"][0] / r["embree"][0] if "embree" in r else float("nan")
             door = r["python"][0] / r["rust"][0] if "python" in r else float("nan")
-            wide = ""
-            if args.wide:
-                w = r.get("wide", (0, 0, 0))
-                wide = f" {spread(w)} | {w[0] / r['embree'][0] if 'embree' in r else float('nan'):.2f} |"
+            single = ""
+            if args.single:
+                w = r.get("single", (0, 0, 0))
+                single = f" {spread(w)} | {w[0] / r['embree'][0] if 'embree' in r else float('nan'):.2f} |"
             print(
                 f"| {mesh} | {camera} | {name} {r['rays']:,} ({r['hit']:.0f} % hit) | {threads} | {spread(r['rust'])} "
                 f"| {spread(r.get('python', (0, 0, 0)))} | {spread(r.get('embree', (0, 0, 0)))} | {ratio:.2f} | {door:.2f} |"
-                + wide + f" {r['nodes']:.1f} / {r['tris']:.2f} |",
+                + single + f" {r['nodes']:.1f} / {r['tris']:.2f} |",
                 flush=True,
             )
             if "agree" in r and r["agree"][0] != r["agree"][1]:

@@ -4,7 +4,7 @@
 //! cargo run --release -p sahkd --example trace_throughput -- MESH [--camera front|near|auto]
 //!     [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR]
 //!     [--sets primary,shadow,ao,bounce] [--no-count] [--preset NAME] [--traversal-cost X]
-//!     [--empty-bonus X] [--bins N] [--clip on|off] [--walk kd|single|wide]
+//!     [--empty-bonus X] [--bins N] [--clip on|off] [--walk packets|single]
 //! ```
 //! The tree is built with the default options (or the preset named), with the cost model's
 //! traversal cost and empty-space bonus, the bins and the clipping given after it.
@@ -22,9 +22,10 @@
 //! with nodes visited, leaves entered and triangles tested per ray from one counting pass.
 //! `--sets` times only the sets named, `--no-count` skips the counting pass (both for
 //! profiling one set's batch calls, e.g. under callgrind).
-//! `--walk` picks what is timed: `kd` (default) the batch calls' packets, `single` the kd walk
-//! one ray at a time, `wide` the 8-wide layout (`sahkd::trace::wide`) one ray at a time, whose
-//! answers the counting pass checks against the kd walk's.
+//! `--walk` picks what is timed: `packets` (default) the batch calls' packets over the kd
+//! nodes, `single` the single-ray calls (`intersect`, `occluded`: the 8-wide nodes' walk) one
+//! ray at a time. The counting pass counts the single-ray walk's wide nodes, leaves and
+//! triangles and checks every batch answer against it.
 //! `--dump DIR` writes the mesh (vertices and faces), its triangles, every set and sahkd's answers as `.npy` files for
 //! `scripts/embree_throughput.py`, which traces the very same rays with Embree.
 
@@ -44,7 +45,6 @@ struct Args {
     sets: Option<Vec<String>>,
     count: bool,
     options: BuildOptions,
-    wide: bool,
     single: bool,
 }
 
@@ -59,7 +59,6 @@ fn parse_args() -> Result<Args, String> {
         sets: None,
         count: true,
         options: BuildOptions::default(),
-        wide: false,
         single: false,
     };
     let mut it = std::env::args().skip(1);
@@ -87,10 +86,9 @@ fn parse_args() -> Result<Args, String> {
             "--sets" => args.sets = Some(value("--sets")?.split(',').map(String::from).collect()),
             "--no-count" => args.count = false,
             "--walk" => match value("--walk")?.as_str() {
-                "kd" => {}
+                "packets" => {}
                 "single" => args.single = true,
-                "wide" => args.wide = true,
-                w => return Err(format!("--walk: expected kd, single or wide, got {w}")),
+                w => return Err(format!("--walk: expected packets or single, got {w}")),
             },
             "--preset" => {
                 // Options given before it are replaced by the preset's; give them after it.
@@ -128,7 +126,7 @@ fn parse_args() -> Result<Args, String> {
         }
     }
     if args.mesh.is_empty() {
-        return Err("usage: trace_throughput MESH [--camera front|near|auto] [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR] [--sets primary,shadow,ao,bounce] [--no-count] [--preset NAME] [--traversal-cost X] [--empty-bonus X] [--bins N] [--clip on|off] [--walk kd|single|wide]".into());
+        return Err("usage: trace_throughput MESH [--camera front|near|auto] [--threads 1,2] [--size 1024] [--repeat 7] [--dump DIR] [--sets primary,shadow,ao,bounce] [--no-count] [--preset NAME] [--traversal-cost X] [--empty-bonus X] [--bins N] [--clip on|off] [--walk packets|single]".into());
     }
     if args.threads.contains(&0) || args.repeat == 0 || args.size == 0 {
         return Err("--threads, --repeat and --size must be at least 1".into());
@@ -312,8 +310,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         tree.triangles().len(),
         tree.nodes().len(),
         tree.refs().len(),
-        // 8-byte nodes and a 40-byte record per reference.
-        (8 * tree.nodes().len() + 40 * tree.refs().len()) as f64 / 1e6,
+        tree.trace_bytes() as f64 / 1e6,
         layout_seconds,
         args.camera,
         camera.eye.0,
@@ -321,18 +318,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         light.0,
         args.repeat
     );
-    let wide = args.wide.then(|| {
-        let start = Instant::now();
-        let w = sahkd::trace::wide::WideBvh::new(&tree);
-        println!(
-            "wide: {} nodes, {:.1} MB ({:.1} B/tri), made in {:.3} s",
-            w.len(),
-            w.bytes() as f64 / 1e6,
-            w.bytes() as f64 / tree.triangles().len() as f64,
-            start.elapsed().as_secs_f64()
-        );
-        w
-    });
     for set in &sets {
         if args
             .sets
@@ -341,29 +326,36 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         {
             continue;
         }
-        // Nodes, leaves and triangles per ray from one counting pass of the single-ray walk,
-        // which the packets' lanes follow exactly.
+        // Nodes, leaves and triangles per ray from one counting pass of the single-ray walk;
+        // the batch calls must give its answers.
         let mut stats = TraceStats::default();
         let mut found = 0usize;
         let mut differ = 0usize;
-        for r in set.rays.iter().filter(|_| args.count) {
-            found += match (set.query, &wide) {
-                (Query::Closest, None) => tree.intersect_counted(r, &mut stats).is_some(),
-                (Query::Any, None) => tree.occluded_counted(r, &mut stats),
-                (Query::Closest, Some(w)) => {
-                    let h = w.intersect_counted(r, &mut stats);
-                    differ += (h != tree.intersect(r)) as usize;
-                    h.is_some()
+        if args.count {
+            match set.query {
+                Query::Closest => {
+                    let batch = tree.intersect_batch(&set.rays);
+                    for (r, b) in set.rays.iter().zip(&batch) {
+                        let h = tree.intersect_counted(r, &mut stats);
+                        found += h.is_some() as usize;
+                        differ += (h != *b) as usize;
+                    }
                 }
-                (Query::Any, Some(w)) => {
-                    let h = w.occluded_counted(r, &mut stats);
-                    differ += (h != tree.occluded(r)) as usize;
-                    h
+                Query::Any => {
+                    let batch = tree.occluded_batch(&set.rays);
+                    for (r, &b) in set.rays.iter().zip(&batch) {
+                        let h = tree.occluded_counted(r, &mut stats);
+                        found += h as usize;
+                        differ += (h != b) as usize;
+                    }
                 }
-            } as usize;
+            }
         }
         if differ > 0 {
-            println!("{}: {differ} answers differ from the kd walk", set.name);
+            println!(
+                "{}: {differ} batch answers differ from the single-ray walk's",
+                set.name
+            );
         }
         let count = set.rays.len().max(1) as f64;
         for &threads in &args.threads {
@@ -371,19 +363,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .num_threads(threads)
                 .build()?;
             let rate = throughput(set.rays.len(), args.repeat, || {
-                pool.install(|| match (set.query, &wide) {
-                    (Query::Closest, Some(w)) => one_by_one(&set.rays, |r| w.intersect(r)),
-                    (Query::Any, Some(w)) => one_by_one(&set.rays, |r| w.occluded(r)),
-                    (Query::Closest, None) if args.single => {
-                        one_by_one(&set.rays, |r| tree.intersect(r))
-                    }
-                    (Query::Any, None) if args.single => {
-                        one_by_one(&set.rays, |r| tree.occluded(r))
-                    }
-                    (Query::Closest, None) => {
+                pool.install(|| match set.query {
+                    Query::Closest if args.single => one_by_one(&set.rays, |r| tree.intersect(r)),
+                    Query::Any if args.single => one_by_one(&set.rays, |r| tree.occluded(r)),
+                    Query::Closest => {
                         std::hint::black_box(tree.intersect_batch(&set.rays));
                     }
-                    (Query::Any, None) => {
+                    Query::Any => {
                         std::hint::black_box(tree.occluded_batch(&set.rays));
                     }
                 })

@@ -32,11 +32,9 @@ use crate::tree::layout;
 pub use precise::{Hit64, Ray64};
 pub use triangle::{ShearedRay, TriangleHit};
 
-use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::{Aabb, Triangle, Vec3};
 use crate::tree::KdTree;
 use rayon::prelude::*;
-use std::mem::MaybeUninit;
 
 /// Tests a leaf's triangles against one ray and calls `visit(hit, limit)` for each hit with
 /// `t` in `[t_min, *limit]`, in the leaf's order, exactly as testing them one at a time
@@ -380,14 +378,6 @@ impl std::ops::AddAssign for TraceStats {
     }
 }
 
-/// Pending far child: node index and the ray interval inside it.
-#[derive(Clone, Copy)]
-struct Pending {
-    node: u32,
-    t0: f32,
-    t1: f32,
-}
-
 /// Slab test against the (scaled) tree's box; a zero direction component checks the origin
 /// instead.
 #[inline(always)]
@@ -437,7 +427,7 @@ impl KdTree {
     /// is reported once per leaf, each time with the same hit; the order of the calls is not
     /// sorted by distance.
     pub fn for_each_hit(&self, ray: &Ray, mut f: impl FnMut(Hit)) {
-        self.walk(ray, &mut (), |hit, _| {
+        self.walk::<false>(ray, &mut (), |hit, _| {
             f(self.finish(ray, hit));
             false
         });
@@ -448,7 +438,7 @@ impl KdTree {
     /// scale. For callers that only count crossings (the parity inside test): refining reads
     /// each hit triangle's corners from the unscaled mesh, a cache miss apiece.
     pub(crate) fn for_each_crossing(&self, ray: &Ray, mut f: impl FnMut(Hit)) {
-        self.walk(ray, &mut (), |hit, _| {
+        self.walk::<false>(ray, &mut (), |hit, _| {
             f(hit);
             false
         });
@@ -522,7 +512,7 @@ impl KdTree {
     #[inline(always)]
     fn closest(&self, ray: &Ray, counters: &mut impl TraceCounters) -> Option<Hit> {
         let mut closest = self.closest_of(ray);
-        self.walk(ray, counters, |hit, limit| {
+        self.walk::<true>(ray, counters, |hit, limit| {
             closest.offer(hit, limit);
             false
         });
@@ -546,100 +536,23 @@ impl KdTree {
     #[inline(always)]
     fn any(&self, ray: &Ray, counters: &mut impl TraceCounters) -> bool {
         let mut found = false;
-        self.walk(ray, counters, |_, _| {
+        self.walk::<false>(ray, counters, |_, _| {
             found = true;
             true
         });
         found
     }
 
-    /// The front-to-back walk shared by every query. `visit(hit, limit)` sees each triangle
-    /// hit with `t` in `[ray.t_min, limit]`; it may lower `limit` (nodes that start beyond it
-    /// are skipped and triangles are tested against it) and returns true to end the walk.
-    #[inline(always)]
-    fn walk(
-        &self,
-        ray: &Ray,
-        counters: &mut impl TraceCounters,
-        mut visit: impl FnMut(Hit, &mut f32) -> bool,
-    ) {
-        if !ray.is_valid() || self.triangles.is_empty() {
-            return;
-        }
-        let layout = self.trace_layout();
-        let nodes = layout.nodes(self);
-        // An origin beyond float32 once scaled lies more than 1e38 scene sizes away.
-        let ray = &ray.scaled(layout.scale);
-        if !ray.origin.is_finite() {
-            return;
-        }
-        let d = ray.direction;
-        let inv = Vec3([1.0 / d[0], 1.0 / d[1], 1.0 / d[2]]);
-        let Some((mut t0, mut t1)) = clip_to_box(&layout.bounds, ray, &inv) else {
-            return;
-        };
-        // The child on the ray's incoming side of a plane is "near". With a zero direction
-        // component `inv` is infinite and the plane distance below is +-inf, which routes the
-        // ray by its origin, or NaN when the origin lies in the plane.
-        let near_is_right = [0, 1, 2].map(|a| d[a].is_sign_negative() as u32);
-        let mut sheared: Option<ShearedRay> = None;
-        // Only entries below `top` are read, and each was written first.
-        let mut stack = [MaybeUninit::<Pending>::uninit(); MAX_DEPTH_CAP as usize + 4];
-        let mut top = 0usize;
-        let mut node_index = 0u32;
-        let mut limit = ray.t_max;
-        loop {
-            // A node that starts beyond the limit is skipped, not a reason to stop: a ray
-            // lying in a split plane pushes a sibling over its whole interval, so the stack
-            // is not always ordered by entry distance.
-            if t0 <= limit {
-                counters.node();
-                let node = &nodes[node_index as usize];
-                if !node.is_leaf() {
-                    let axis = node.axis();
-                    let left = node.left();
-                    let t_plane = (node.split() - ray.origin[axis]) * inv[axis];
-                    let near = left + near_is_right[axis];
-                    let far = left + 1 - near_is_right[axis];
-                    match cut(t_plane, t0, t1) {
-                        Cut::Near => node_index = near,
-                        Cut::Far => node_index = far,
-                        Cut::Both { far_t0, near_t1 } => {
-                            stack[top] = MaybeUninit::new(Pending {
-                                node: far,
-                                t0: far_t0,
-                                t1,
-                            });
-                            top += 1;
-                            node_index = near;
-                            t1 = near_t1;
-                        }
-                    }
-                    continue;
-                }
-                let words = layout.leaf_words(node);
-                if !words.is_empty() {
-                    counters.leaf();
-                    let sheared =
-                        sheared.get_or_insert_with(|| ShearedRay::with_reach(ray, layout.reach));
-                    if visit_leaf(sheared, words, ray.t_min, &mut limit, counters, &mut visit) {
-                        return;
-                    }
-                }
-            }
-            if top == 0 {
-                return;
-            }
-            top -= 1;
-            // SAFETY: entries below `top` were all written by a push.
-            let p = unsafe { stack[top].assume_init() };
-            (node_index, t0, t1) = (p.node, p.t0, p.t1);
-        }
-    }
-
     /// Makes the trace layout now if no query has made it yet (queries make it on first
     /// use), so that a caller can time it apart from the queries.
     pub fn prepare_trace(&self) {
         self.trace_layout();
+    }
+
+    /// Bytes of the trace layout (making it if no query has yet): the leaves' triangle
+    /// blocks, the wide nodes, and the renumbered kd nodes where the tree's own are not in
+    /// walk order.
+    pub fn trace_bytes(&self) -> usize {
+        self.trace_layout().bytes()
     }
 }

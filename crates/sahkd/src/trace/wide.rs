@@ -1,197 +1,16 @@
-//! The kd-tree collapsed into 8-wide bounded nodes, walked one ray at a time with the slab
-//! tests of all eight children at once (AVX2 where the CPU has it).
-//!
-//! Every kd node gets the box of what it holds: a leaf's triangles clipped to its cell, an
-//! interior node the union of its children's. A wide node is made from a kd node by opening,
-//! again and again, the child of largest box area among its current children while what it
-//! opens into still fits eight: an interior kd node into its two children, a leaf of more than
-//! one 4-triangle block of the trace layout into its blocks, each with the box of its own
-//! triangles (children holding nothing are dropped). Leaves are runs of the trace layout's
-//! words, tested as the kd walk tests them, so the answers are the kd walk's; a child's box
-//! is padded so that the float32 slab test cannot miss a hit on its border, and the walk
-//! keeps the pending children of a closest-hit walk sorted by entry distance, nearest on top.
-//!
-//! Not yet walked by the public queries: `examples/trace_throughput --walk wide` measures it
-//! against the kd walk's packets and single rays (BENCHMARKS.md, "A wide layout").
+//! The walk of the trace layout's 8-wide nodes (`tree::wide`), one ray at a time with the
+//! slab tests of a node's eight children at once (AVX2 where the CPU has it): the walk of
+//! every ray query, closest, any and every hit. Its leaves are runs of the trace layout's
+//! words, tested four triangles at a time by `visit_leaf`; a closest-hit walk keeps the
+//! pending children sorted by entry distance, nearest on top, and an any-hit walk does not
+//! (it ends at any hit).
 
-use super::{visit_leaf, Closest, Hit, Ray, ShearedRay, TraceCounters};
-use crate::clip::clipped_bounds;
+use super::{visit_leaf, Hit, Ray, ShearedRay, TraceCounters};
 use crate::cost::MAX_DEPTH_CAP;
-use crate::geometry::Aabb;
-use crate::tree::layout::{block_record, TraceLayout, BLOCK, WORDS};
-use crate::tree::{KdTree, Node};
+use crate::tree::layout::WORDS;
+use crate::tree::wide::{WideNode, LEAF, WIDEN, WIDTH};
+use crate::tree::KdTree;
 use std::mem::MaybeUninit;
-
-const WIDTH: usize = 8;
-/// A child that is a leaf: `LEAF | first triangle` in the layout's words.
-const LEAF: u32 = 1 << 31;
-
-/// Eight children: rows lo x, lo y, lo z, hi x, hi y, hi z of their boxes, lane = child.
-#[repr(C, align(64))]
-#[derive(Clone, Copy)]
-struct WideNode {
-    bounds: [[f32; WIDTH]; 6],
-    child: [u32; WIDTH],
-    count: [u32; WIDTH],
-}
-
-impl WideNode {
-    /// No children: a lane without one has a NaN box, which every comparison fails.
-    fn empty() -> WideNode {
-        WideNode {
-            bounds: [[f32::NAN; WIDTH]; 6],
-            child: [0; WIDTH],
-            count: [0; WIDTH],
-        }
-    }
-}
-
-/// The wide layout of one tree.
-pub struct WideBvh<'a> {
-    tree: &'a KdTree,
-    nodes: Vec<WideNode>,
-}
-
-/// Per kd node of the trace layout: its content box (empty when it holds nothing) and, for a
-/// leaf, where its blocks' boxes start in `block_boxes` (one per 4-triangle block, in order).
-struct Collapse<'a> {
-    kd: &'a [Node],
-    layout: &'a TraceLayout,
-    content: Vec<Aabb>,
-    first_block: Vec<u32>,
-    block_boxes: Vec<Aabb>,
-    nodes: Vec<WideNode>,
-    pad: f32,
-}
-
-/// A child of a wide node being made: a kd node, or one block of a kd leaf (its first
-/// triangle in the layout, its count and its box).
-#[derive(Clone, Copy)]
-enum Kid {
-    Kd(u32),
-    Block(u32, u32, Aabb),
-}
-
-impl Collapse<'_> {
-    fn content_of(&mut self, i: u32, cell: Aabb) -> Aabb {
-        let node = self.kd[i as usize];
-        let b = if node.is_leaf() {
-            self.first_block[i as usize] = self.block_boxes.len() as u32;
-            let words = self.layout.leaf_words(&node);
-            let mut leaf = Aabb::EMPTY;
-            for block in words.chunks(BLOCK * WORDS) {
-                let b = (0..block.len() / WORDS).fold(Aabb::EMPTY, |b, t| {
-                    b.union(clipped_bounds(&block_record(block, t).corners, &cell))
-                });
-                self.block_boxes.push(b);
-                leaf = leaf.union(b);
-            }
-            leaf
-        } else {
-            let (l, r) = cell.split(node.axis(), node.split());
-            let a = self.content_of(node.left(), l);
-            let c = self.content_of(node.left() + 1, r);
-            a.union(c)
-        };
-        self.content[i as usize] = b;
-        b
-    }
-
-    fn bounds(&self, kid: &Kid) -> Aabb {
-        match *kid {
-            Kid::Kd(k) => self.content[k as usize],
-            Kid::Block(_, _, b) => b,
-        }
-    }
-
-    /// What opening `kid` gives at most: an interior kd node its two children, a leaf of
-    /// more than a block its blocks; 0 where it cannot be opened.
-    fn pieces(&self, kid: &Kid) -> usize {
-        match *kid {
-            Kid::Kd(k) => {
-                let node = &self.kd[k as usize];
-                if !node.is_leaf() {
-                    2
-                } else if node.count() as usize > BLOCK {
-                    (node.count() as usize).div_ceil(BLOCK)
-                } else {
-                    0
-                }
-            }
-            Kid::Block(..) => 0,
-        }
-    }
-
-    fn area(b: &Aabb) -> f32 {
-        let e = b.extent();
-        e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
-    }
-
-    /// Makes the wide node of kd node `i`: its children opened, the largest box first, while
-    /// what they open into fits eight; returns the wide node's index.
-    fn make(&mut self, i: u32) -> u32 {
-        let mut kids = vec![Kid::Kd(i)];
-        loop {
-            let open = (0..kids.len())
-                .filter(|&j| {
-                    let p = self.pieces(&kids[j]);
-                    p > 0 && kids.len() - 1 + p <= WIDTH
-                })
-                .max_by(|&a, &b| {
-                    Self::area(&self.bounds(&kids[a]))
-                        .total_cmp(&Self::area(&self.bounds(&kids[b])))
-                });
-            let Some(j) = open else { break };
-            let Kid::Kd(k) = kids.remove(j) else {
-                unreachable!("only kd nodes open")
-            };
-            let node = self.kd[k as usize];
-            if node.is_leaf() {
-                // Its blocks' boxes, made with its content box.
-                let boxes = &self.block_boxes[self.first_block[k as usize] as usize..];
-                for (j, &b) in boxes.iter().take(self.pieces(&Kid::Kd(k))).enumerate() {
-                    let first = (j * BLOCK) as u32;
-                    if !b.is_empty() {
-                        let count = (node.count() - first).min(BLOCK as u32);
-                        kids.push(Kid::Block(node.first() + first, count, b));
-                    }
-                }
-            } else {
-                for c in [node.left(), node.left() + 1] {
-                    if !self.content[c as usize].is_empty() {
-                        kids.push(Kid::Kd(c));
-                    }
-                }
-            }
-        }
-        debug_assert!(kids.len() <= WIDTH);
-        let at = self.nodes.len() as u32;
-        self.nodes.push(WideNode::empty());
-        let mut node = WideNode::empty();
-        for (lane, kid) in kids.iter().enumerate() {
-            let b = self.bounds(kid);
-            for a in 0..3 {
-                // Padded by the scene's own margin and by a few roundings of the coordinate:
-                // far from the origin a float32 step dwarfs the scene's margin.
-                node.bounds[a][lane] = b.lo[a] - (self.pad + b.lo[a].abs() * WIDEN);
-                node.bounds[3 + a][lane] = b.hi[a] + (self.pad + b.hi[a].abs() * WIDEN);
-            }
-            (node.child[lane], node.count[lane]) = match *kid {
-                Kid::Block(first, count, _) => (LEAF | first, count),
-                Kid::Kd(k) => {
-                    let kd = self.kd[k as usize];
-                    if kd.is_leaf() {
-                        (LEAF | kd.first(), kd.count())
-                    } else {
-                        (self.make(k), 0)
-                    }
-                }
-            };
-        }
-        self.nodes[at as usize] = node;
-        at
-    }
-}
 
 /// What a ray needs to test a node's boxes: per axis, the row of the face it meets first
 /// (`near`) and last (`far`), its origin and the reciprocal of its direction.
@@ -201,11 +20,6 @@ struct Slabs {
     origin: [f32; 3],
     rd: [f32; 3],
 }
-
-/// How far slab distances are rounded outwards, relative to their size: more than the
-/// roundings of a difference and a product, so that no hit is lost to them, whatever the
-/// origin's distance from the box.
-const WIDEN: f32 = 1.0 / (1 << 20) as f32;
 
 /// `a` if greater, else `b`: a NaN in either gives `b`, as a vector max does.
 #[inline(always)]
@@ -329,89 +143,20 @@ struct Entry {
     t: f32,
 }
 
-impl<'a> WideBvh<'a> {
-    /// The wide layout of `tree` (made from its trace layout, which this makes if no query
-    /// has yet).
-    pub fn new(tree: &'a KdTree) -> WideBvh<'a> {
-        let layout = tree.trace_layout();
-        let kd = layout.nodes(tree);
-        let mut c = Collapse {
-            kd,
-            layout,
-            content: vec![Aabb::EMPTY; kd.len()],
-            first_block: vec![0; kd.len()],
-            block_boxes: Vec::new(),
-            nodes: Vec::new(),
-            pad: layout.reach * WIDEN,
-        };
-        if !kd.is_empty() && !tree.triangles().is_empty() {
-            c.content_of(0, layout.bounds);
-            if !c.content[0].is_empty() {
-                c.make(0);
-            }
-        }
-        WideBvh {
-            tree,
-            nodes: c.nodes,
-        }
-    }
-
-    /// Bytes of the wide nodes.
-    pub fn bytes(&self) -> usize {
-        self.nodes.len() * std::mem::size_of::<WideNode>()
-    }
-
-    /// The number of wide nodes.
-    pub fn len(&self) -> usize {
-        self.nodes.len()
-    }
-
-    /// True for a tree with nothing to hit.
-    pub fn is_empty(&self) -> bool {
-        self.nodes.is_empty()
-    }
-
-    /// [`Self::intersect`], counting wide nodes visited, leaves entered and triangles tested.
-    pub fn intersect_counted(&self, ray: &Ray, counters: &mut impl TraceCounters) -> Option<Hit> {
-        let layout = self.tree.trace_layout();
-        let mut closest = Closest::new(self.tree.triangles(), ray, layout.scale, layout.reach);
-        self.walk::<true>(ray, counters, |hit, limit| {
-            closest.offer(hit, limit);
-            false
-        });
-        closest.best()
-    }
-
-    /// [`Self::occluded`], counting as [`Self::intersect_counted`] does.
-    pub fn occluded_counted(&self, ray: &Ray, counters: &mut impl TraceCounters) -> bool {
-        let mut found = false;
-        self.walk::<false>(ray, counters, |_, _| {
-            found = true;
-            true
-        });
-        found
-    }
-
-    /// The closest hit in `[ray.t_min, ray.t_max]`: [`KdTree::intersect`]'s answer.
-    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        self.intersect_counted(ray, &mut ())
-    }
-
-    /// True when anything is hit in `[ray.t_min, ray.t_max]`: [`KdTree::occluded`]'s answer.
-    pub fn occluded(&self, ray: &Ray) -> bool {
-        self.occluded_counted(ray, &mut ())
-    }
-
+impl KdTree {
     /// The walk; `ORDERED` keeps the pending children sorted by entry distance, which a
     /// closest hit needs to stop early and an any hit does not (it stops at any hit).
+    /// `visit(hit, limit)` sees each triangle hit with `t` in `[ray.t_min, limit]`; it may
+    /// lower `limit` (children entered beyond it are skipped and triangles are tested against
+    /// it) and returns true to end the walk.
     #[inline(always)]
-    fn walk<const ORDERED: bool>(
+    pub(super) fn walk<const ORDERED: bool>(
         &self,
         ray: &Ray,
         counters: &mut impl TraceCounters,
         visit: impl FnMut(Hit, &mut f32) -> bool,
     ) {
-        if !ray.is_valid() || self.nodes.is_empty() {
+        if !ray.is_valid() || self.triangles.is_empty() || self.trace_layout().wide.is_empty() {
             return;
         }
         #[cfg(target_arch = "x86_64")]
@@ -443,7 +188,8 @@ impl<'a> WideBvh<'a> {
         counters: &mut impl TraceCounters,
         mut visit: impl FnMut(Hit, &mut f32) -> bool,
     ) {
-        let layout = self.tree.trace_layout();
+        let layout = self.trace_layout();
+        let nodes = &layout.wide[..];
         let ray = &ray.scaled(layout.scale);
         if !ray.origin.is_finite() {
             return;
@@ -461,7 +207,7 @@ impl<'a> WideBvh<'a> {
         loop {
             if cur.child & LEAF == 0 {
                 counters.node();
-                let node = &self.nodes[cur.child as usize];
+                let node = &nodes[cur.child as usize];
                 let (mut mask, ts) = match AVX2 {
                     #[cfg(target_arch = "x86_64")]
                     // SAFETY: `AVX2` is set only in the walk compiled for AVX2, which runs
@@ -470,43 +216,33 @@ impl<'a> WideBvh<'a> {
                     _ => slabs.enter(node, ray.t_min, limit),
                 };
                 if mask != 0 {
-                    let lane = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    let first = Entry {
+                    let entry = |lane: usize| Entry {
                         child: node.child[lane],
                         count: node.count[lane],
                         t: ts[lane],
                     };
-                    if mask == 0 {
-                        cur = first;
-                        continue;
-                    }
-                    // Two or more: all pushed; ordered, sorted so that the nearest is popped
-                    // first.
+                    let mut next = entry(mask.trailing_zeros() as usize);
+                    mask &= mask - 1;
+                    // The nearest child is walked next straight from registers; the others
+                    // are pushed, sorted for a closest hit so that the nearest pops first.
                     let base = top;
-                    let mut push = |e: Entry, top: &mut usize| {
-                        let mut j = *top;
-                        // SAFETY: entries from `base` to `top` were written by this push.
+                    while mask != 0 {
+                        let mut e = entry(mask.trailing_zeros() as usize);
+                        mask &= mask - 1;
+                        if ORDERED && e.t < next.t {
+                            std::mem::swap(&mut e, &mut next);
+                        }
+                        let mut j = top;
+                        // SAFETY: entries from `base` to `top` were written by this loop.
                         while ORDERED && j > base && unsafe { stack[j - 1].assume_init() }.t < e.t {
                             stack[j] = stack[j - 1];
                             j -= 1;
                         }
                         stack[j] = MaybeUninit::new(e);
-                        *top += 1;
-                    };
-                    push(first, &mut top);
-                    while mask != 0 {
-                        let lane = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        push(
-                            Entry {
-                                child: node.child[lane],
-                                count: node.count[lane],
-                                t: ts[lane],
-                            },
-                            &mut top,
-                        );
+                        top += 1;
                     }
+                    cur = next;
+                    continue;
                 }
             } else {
                 counters.leaf();
@@ -538,6 +274,7 @@ impl<'a> WideBvh<'a> {
 mod tests {
     use super::*;
     use crate::geometry::Vec3;
+    use crate::trace::Closest;
     use crate::{build_triangles, BuildOptions};
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
@@ -598,7 +335,6 @@ mod tests {
         let tree = build_triangles(tris, &BuildOptions::default())
             .unwrap()
             .tree;
-        let wide = WideBvh::new(&tree);
         for i in 0..2000 {
             let o = Vec3([0f32; 3].map(|_| rng.random_range(-2.0..12.0f32)));
             let mut d = Vec3([0f32; 3].map(|_| rng.random_range(-1.0..1.0f32)));
@@ -608,7 +344,7 @@ mod tests {
             let ray = Ray::new(o, d);
             let layout = tree.trace_layout();
             let mut closest = Closest::new(tree.triangles(), &ray, layout.scale, layout.reach);
-            wide.walk_any::<false, true>(&ray, &mut (), |hit, limit| {
+            tree.walk_any::<false, true>(&ray, &mut (), |hit, limit| {
                 closest.offer(hit, limit);
                 false
             });

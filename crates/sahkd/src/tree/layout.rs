@@ -29,6 +29,7 @@
 //! and rays' origins with them, so that the ray/triangle test works in float32's range.
 
 use crate::geometry::{scene_scale, Aabb, Triangle, Vec3};
+use crate::tree::wide::{collapse, WideNode};
 use crate::tree::{KdTree, Node};
 
 /// Words per triangle in [`TraceLayout::words`]: 9 corner coordinates and the index.
@@ -58,6 +59,9 @@ pub(crate) struct TraceLayout {
     pub inv_scale: f32,
     /// The scaled box's largest extent (see `ShearedRay::with_reach` in `trace`).
     pub reach: f32,
+    /// The 8-wide nodes every ray query walks, root first (`tree::wide`); none for a tree
+    /// with nothing to hit.
+    pub wide: Vec<WideNode>,
 }
 
 impl TraceLayout {
@@ -100,14 +104,25 @@ impl TraceLayout {
         if let Some(nodes) = own_nodes.as_mut() {
             nodes.truncate(next as usize);
         }
-        TraceLayout {
+        let mut layout = TraceLayout {
             own_nodes,
             words,
             bounds: tree.bounds.scaled(scale),
             reach: reach_of(&tree.bounds.scaled(scale)),
             scale,
             inv_scale: 1.0 / scale,
-        }
+            wide: Vec::new(),
+        };
+        layout.wide = collapse(layout.nodes(tree), &layout);
+        layout
+    }
+
+    /// Bytes held by the layout: its words, its own kd nodes and its wide nodes.
+    pub fn bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(&self.words[..])
+            + self.own_nodes.as_deref().map_or(0, size_of_val)
+            + size_of_val(&self.wide[..])
     }
 
     /// The nodes to walk: the layout's own, or the tree's where they are the same.

@@ -14,6 +14,7 @@
 pub(crate) mod layout;
 mod stats;
 pub(crate) mod validate;
+pub(crate) mod wide;
 
 pub use stats::TreeStats;
 

@@ -5,7 +5,6 @@ use proptest::prelude::*;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use sahkd::trace::brute;
-use sahkd::trace::wide::WideBvh;
 use sahkd::{Aabb, Algorithm, Axes, BuildOptions, Counting, KdTree, Mesh, Ray, Triangle, Vec3};
 use std::path::PathBuf;
 
@@ -169,25 +168,11 @@ pub fn random_rays(rng: &mut StdRng, bounds: &Aabb, n: usize) -> Vec<Ray> {
         .collect()
 }
 
-/// Compares the tree's answers with the brute force on every ray, through the kd walk and the
-/// wide layout made from the tree. The hit must be the same to the bit: all use one triangle
-/// test, so any difference is a traversal or tree bug.
+/// Compares the tree's answers with the brute force on every ray. The hit must be the same to
+/// the bit: all use one triangle test, so any difference is a traversal or tree bug.
 pub fn check_oracle(tree: &KdTree, rays: &[Ray]) -> Result<(), String> {
     let tris = tree.triangles();
-    let wide = WideBvh::new(tree);
     for (i, ray) in rays.iter().enumerate() {
-        let (got, want) = (wide.intersect(ray), brute::intersect(tris, ray));
-        if got != want {
-            return Err(format!(
-                "ray {i} {ray:?}: the wide walk gives {got:?}, brute force {want:?}"
-            ));
-        }
-        let (got, want) = (wide.occluded(ray), brute::occluded(tris, ray));
-        if got != want {
-            return Err(format!(
-                "ray {i} {ray:?}: the wide walk says occluded={got}, brute force {want}"
-            ));
-        }
         let got = tree.intersect(ray);
         let want = brute::intersect(tris, ray);
         if got != want {

@@ -1,0 +1,207 @@
+//! The trace layout's wide nodes: the kd-tree collapsed into 8-wide bounded nodes, which
+//! every ray query walks (`trace::wide`).
+//!
+//! Every kd node gets the box of what it holds: a leaf's triangles clipped to its cell, an
+//! interior node the union of its children's. A wide node is made from a kd node by opening,
+//! again and again, the child of largest box area among its current children while what it
+//! opens into still fits eight: an interior kd node into its two children, a leaf of more than
+//! one 4-triangle block of the trace layout into its blocks, each with the box of its own
+//! triangles (children holding nothing are dropped). Leaves are runs of the trace layout's
+//! words; a child's box is padded so that the float32 slab test cannot miss a hit on its
+//! border.
+
+use crate::clip::clipped_bounds;
+use crate::geometry::Aabb;
+use crate::tree::layout::{block_record, TraceLayout, BLOCK, WORDS};
+use crate::tree::Node;
+
+pub(crate) const WIDTH: usize = 8;
+/// A child that is a leaf: `LEAF | first triangle` in the layout's words.
+pub(crate) const LEAF: u32 = 1 << 31;
+
+/// Eight children: rows lo x, lo y, lo z, hi x, hi y, hi z of their boxes, lane = child.
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct WideNode {
+    pub bounds: [[f32; WIDTH]; 6],
+    pub child: [u32; WIDTH],
+    pub count: [u32; WIDTH],
+}
+
+impl WideNode {
+    /// No children: a lane without one has a NaN box, which every comparison fails.
+    pub(crate) fn empty() -> WideNode {
+        WideNode {
+            bounds: [[f32::NAN; WIDTH]; 6],
+            child: [0; WIDTH],
+            count: [0; WIDTH],
+        }
+    }
+}
+
+/// Per kd node of the trace layout: its content box (empty when it holds nothing) and, for a
+/// leaf, where its blocks' boxes start in `block_boxes` (one per 4-triangle block, in order).
+struct Collapse<'a> {
+    kd: &'a [Node],
+    layout: &'a TraceLayout,
+    content: Vec<Aabb>,
+    first_block: Vec<u32>,
+    block_boxes: Vec<Aabb>,
+    nodes: Vec<WideNode>,
+    pad: f32,
+}
+
+/// A child of a wide node being made: a kd node, or one block of a kd leaf (its first
+/// triangle in the layout, its count and its box).
+#[derive(Clone, Copy)]
+enum Kid {
+    Kd(u32),
+    Block(u32, u32, Aabb),
+}
+
+impl Collapse<'_> {
+    fn content_of(&mut self, i: u32, cell: Aabb) -> Aabb {
+        let node = self.kd[i as usize];
+        let b = if node.is_leaf() {
+            self.first_block[i as usize] = self.block_boxes.len() as u32;
+            let words = self.layout.leaf_words(&node);
+            let mut leaf = Aabb::EMPTY;
+            for block in words.chunks(BLOCK * WORDS) {
+                let b = (0..block.len() / WORDS).fold(Aabb::EMPTY, |b, t| {
+                    b.union(clipped_bounds(&block_record(block, t).corners, &cell))
+                });
+                self.block_boxes.push(b);
+                leaf = leaf.union(b);
+            }
+            leaf
+        } else {
+            let (l, r) = cell.split(node.axis(), node.split());
+            let a = self.content_of(node.left(), l);
+            let c = self.content_of(node.left() + 1, r);
+            a.union(c)
+        };
+        self.content[i as usize] = b;
+        b
+    }
+
+    fn bounds(&self, kid: &Kid) -> Aabb {
+        match *kid {
+            Kid::Kd(k) => self.content[k as usize],
+            Kid::Block(_, _, b) => b,
+        }
+    }
+
+    /// What opening `kid` gives at most: an interior kd node its two children, a leaf of
+    /// more than a block its blocks; 0 where it cannot be opened.
+    fn pieces(&self, kid: &Kid) -> usize {
+        match *kid {
+            Kid::Kd(k) => {
+                let node = &self.kd[k as usize];
+                if !node.is_leaf() {
+                    2
+                } else if node.count() as usize > BLOCK {
+                    (node.count() as usize).div_ceil(BLOCK)
+                } else {
+                    0
+                }
+            }
+            Kid::Block(..) => 0,
+        }
+    }
+
+    fn area(b: &Aabb) -> f32 {
+        let e = b.extent();
+        e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
+    }
+
+    /// Makes the wide node of kd node `i`: its children opened, the largest box first, while
+    /// what they open into fits eight; returns the wide node's index.
+    fn make(&mut self, i: u32) -> u32 {
+        let mut kids = vec![Kid::Kd(i)];
+        loop {
+            let open = (0..kids.len())
+                .filter(|&j| {
+                    let p = self.pieces(&kids[j]);
+                    p > 0 && kids.len() - 1 + p <= WIDTH
+                })
+                .max_by(|&a, &b| {
+                    Self::area(&self.bounds(&kids[a]))
+                        .total_cmp(&Self::area(&self.bounds(&kids[b])))
+                });
+            let Some(j) = open else { break };
+            let Kid::Kd(k) = kids.remove(j) else {
+                unreachable!("only kd nodes open")
+            };
+            let node = self.kd[k as usize];
+            if node.is_leaf() {
+                // Its blocks' boxes, made with its content box.
+                let boxes = &self.block_boxes[self.first_block[k as usize] as usize..];
+                for (j, &b) in boxes.iter().take(self.pieces(&Kid::Kd(k))).enumerate() {
+                    let first = (j * BLOCK) as u32;
+                    if !b.is_empty() {
+                        let count = (node.count() - first).min(BLOCK as u32);
+                        kids.push(Kid::Block(node.first() + first, count, b));
+                    }
+                }
+            } else {
+                for c in [node.left(), node.left() + 1] {
+                    if !self.content[c as usize].is_empty() {
+                        kids.push(Kid::Kd(c));
+                    }
+                }
+            }
+        }
+        debug_assert!(kids.len() <= WIDTH);
+        let at = self.nodes.len() as u32;
+        self.nodes.push(WideNode::empty());
+        let mut node = WideNode::empty();
+        for (lane, kid) in kids.iter().enumerate() {
+            let b = self.bounds(kid);
+            for a in 0..3 {
+                // Padded by the scene's own margin and by a few roundings of the coordinate:
+                // far from the origin a float32 step dwarfs the scene's margin.
+                node.bounds[a][lane] = b.lo[a] - (self.pad + b.lo[a].abs() * WIDEN);
+                node.bounds[3 + a][lane] = b.hi[a] + (self.pad + b.hi[a].abs() * WIDEN);
+            }
+            (node.child[lane], node.count[lane]) = match *kid {
+                Kid::Block(first, count, _) => (LEAF | first, count),
+                Kid::Kd(k) => {
+                    let kd = self.kd[k as usize];
+                    if kd.is_leaf() {
+                        (LEAF | kd.first(), kd.count())
+                    } else {
+                        (self.make(k), 0)
+                    }
+                }
+            };
+        }
+        self.nodes[at as usize] = node;
+        at
+    }
+}
+
+/// How far slab distances are rounded outwards, relative to their size: more than the
+/// roundings of a difference and a product, so that no hit is lost to them, whatever the
+/// origin's distance from the box.
+pub(crate) const WIDEN: f32 = 1.0 / (1 << 20) as f32;
+
+/// The wide nodes of a trace layout whose kd nodes are `kd` (root first; none for a tree
+/// with nothing to hit).
+pub(crate) fn collapse(kd: &[Node], layout: &TraceLayout) -> Vec<WideNode> {
+    let mut c = Collapse {
+        kd,
+        layout,
+        content: vec![Aabb::EMPTY; kd.len()],
+        first_block: vec![0; kd.len()],
+        block_boxes: Vec::new(),
+        nodes: Vec::new(),
+        pad: layout.reach * WIDEN,
+    };
+    if !kd.is_empty() && !layout.words.is_empty() {
+        c.content_of(0, layout.bounds);
+        if !c.content[0].is_empty() {
+            c.make(0);
+        }
+    }
+    c.nodes
+}
