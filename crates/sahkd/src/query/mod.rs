@@ -1,10 +1,10 @@
 //! Point queries: closest point, distance, signed distance and the inside test, one point
 //! or a batch on every core.
 //!
-//! - [`KdTree::closest_point`] walks the tree nearest child first and skips nodes farther
-//!   than the best triangle so far (`nearest`); each triangle's closest point is computed
-//!   exactly in f64 (`triangle`). The answer equals the brute force's ([`brute`]) to the
-//!   bit, ties going to the lower triangle index.
+//! - [`KdTree::closest_point`] walks the tree's 8-wide nodes nearest child first and skips
+//!   children farther than the best triangle so far (`nearest`); each triangle's closest
+//!   point is computed exactly in f64 (`triangle`). The answer equals the brute force's
+//!   ([`brute`]) to the bit, ties going to the lower triangle index.
 //! - The inside test has two methods ([`InsideTest`]). [`InsideTest::Parity`], the default,
 //!   casts one ray, trusted when its crossings lie clear of triangle edges, else three
 //!   that vote (`parity`): one tree walk for most points, and exact for closed meshes.

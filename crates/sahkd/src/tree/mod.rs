@@ -63,11 +63,6 @@ impl Node {
     pub fn is_leaf(&self) -> bool {
         self.bits & 3 == LEAF
     }
-    /// A leaf without primitives.
-    #[inline(always)]
-    pub fn is_empty_leaf(&self) -> bool {
-        self.bits == LEAF
-    }
     /// Split axis of an interior node.
     #[inline(always)]
     pub fn axis(&self) -> usize {
