@@ -21,7 +21,7 @@ use super::ClosestPoint;
 use crate::cost::MAX_DEPTH_CAP;
 use crate::geometry::{Aabb, Triangle, Vec3};
 use crate::tree::layout::{block_prim, block_record, BLOCK, WORDS};
-use crate::tree::wide::{WideNode, LEAF, WIDTH};
+use crate::tree::wide::{push_children, WideNode, LEAF, WIDTH};
 use crate::tree::KdTree;
 use std::mem::MaybeUninit;
 
@@ -304,28 +304,10 @@ fn closest_point_any<const AVX2: bool>(
                     count: node.count[lane],
                     distance2: d2[lane],
                 };
-                let mut next = entry(mask.trailing_zeros() as usize);
-                mask &= mask - 1;
                 // The nearest child is visited next; the others are pushed sorted, so the
                 // nearest of them pops first.
-                let base = top;
-                while mask != 0 {
-                    let mut e = entry(mask.trailing_zeros() as usize);
-                    mask &= mask - 1;
-                    if e.distance2 < next.distance2 {
-                        std::mem::swap(&mut e, &mut next);
-                    }
-                    let mut j = top;
-                    // SAFETY: entries from `base` to `top` were written by this loop.
-                    while j > base && unsafe { stack[j - 1].assume_init() }.distance2 < e.distance2
-                    {
-                        stack[j] = stack[j - 1];
-                        j -= 1;
-                    }
-                    stack[j] = MaybeUninit::new(e);
-                    top += 1;
-                }
-                current = next;
+                current =
+                    push_children::<_, true>(mask, entry, |e| e.distance2, &mut stack, &mut top);
                 continue;
             }
         } else {

@@ -8,7 +8,7 @@
 use super::{visit_leaf, Hit, Ray, ShearedRay, TraceCounters};
 use crate::cost::MAX_DEPTH_CAP;
 use crate::tree::layout::WORDS;
-use crate::tree::wide::{WideNode, LEAF, WIDEN, WIDTH};
+use crate::tree::wide::{push_children, WideNode, LEAF, WIDEN, WIDTH};
 use crate::tree::KdTree;
 use std::mem::MaybeUninit;
 
@@ -208,7 +208,7 @@ impl KdTree {
             if cur.child & LEAF == 0 {
                 counters.node();
                 let node = &nodes[cur.child as usize];
-                let (mut mask, ts) = match AVX2 {
+                let (mask, ts) = match AVX2 {
                     #[cfg(target_arch = "x86_64")]
                     // SAFETY: `AVX2` is set only in the walk compiled for AVX2, which runs
                     // where the CPU has it.
@@ -221,27 +221,9 @@ impl KdTree {
                         count: node.count[lane],
                         t: ts[lane],
                     };
-                    let mut next = entry(mask.trailing_zeros() as usize);
-                    mask &= mask - 1;
                     // The nearest child is walked next straight from registers; the others
                     // are pushed, sorted for a closest hit so that the nearest pops first.
-                    let base = top;
-                    while mask != 0 {
-                        let mut e = entry(mask.trailing_zeros() as usize);
-                        mask &= mask - 1;
-                        if ORDERED && e.t < next.t {
-                            std::mem::swap(&mut e, &mut next);
-                        }
-                        let mut j = top;
-                        // SAFETY: entries from `base` to `top` were written by this loop.
-                        while ORDERED && j > base && unsafe { stack[j - 1].assume_init() }.t < e.t {
-                            stack[j] = stack[j - 1];
-                            j -= 1;
-                        }
-                        stack[j] = MaybeUninit::new(e);
-                        top += 1;
-                    }
-                    cur = next;
+                    cur = push_children::<_, ORDERED>(mask, entry, |e| e.t, &mut stack, &mut top);
                     continue;
                 }
             } else {

@@ -14,6 +14,7 @@ use crate::clip::clipped_bounds;
 use crate::geometry::Aabb;
 use crate::tree::layout::{block_record, TraceLayout, BLOCK, WORDS};
 use crate::tree::Node;
+use std::mem::MaybeUninit;
 
 pub(crate) const WIDTH: usize = 8;
 /// A child that is a leaf: `LEAF | first triangle` in the layout's words.
@@ -178,6 +179,41 @@ impl Collapse<'_> {
         self.nodes[at as usize] = node;
         at
     }
+}
+
+/// The walk's step at a wide node: of the children in `mask` (bit `i` for lane `i`, at
+/// least one), made by `entry`, returns the one to walk next and pushes the others onto
+/// `stack` at `top`. With `SORTED` the one returned has the smallest `key` and the pushed
+/// ones are sorted so that the smallest pops first (a walk by distance: closest hits,
+/// closest points); without, the order is the lanes' (an any-hit walk, which stops at any
+/// hit).
+#[inline(always)]
+pub(crate) fn push_children<E: Copy, const SORTED: bool>(
+    mut mask: u32,
+    entry: impl Fn(usize) -> E,
+    key: impl Fn(&E) -> f32,
+    stack: &mut [MaybeUninit<E>],
+    top: &mut usize,
+) -> E {
+    let mut next = entry(mask.trailing_zeros() as usize);
+    mask &= mask - 1;
+    let base = *top;
+    while mask != 0 {
+        let mut e = entry(mask.trailing_zeros() as usize);
+        mask &= mask - 1;
+        if SORTED && key(&e) < key(&next) {
+            std::mem::swap(&mut e, &mut next);
+        }
+        let mut j = *top;
+        // SAFETY: entries from `base` to `top` were written by this loop.
+        while SORTED && j > base && key(unsafe { &stack[j - 1].assume_init() }) < key(&e) {
+            stack[j] = stack[j - 1];
+            j -= 1;
+        }
+        stack[j] = MaybeUninit::new(e);
+        *top += 1;
+    }
+    next
 }
 
 /// How far slab distances are rounded outwards, relative to their size: more than the
