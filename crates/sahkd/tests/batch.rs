@@ -1,6 +1,7 @@
-//! The batch calls walk neighbouring rays in packets; their answers must be those of the
-//! brute-force oracle and of the single-ray queries, bit for bit, whatever mix of rays a
-//! packet holds: same direction signs (walked together), mixed signs (one at a time),
+//! The batch calls walk neighbouring rays in a narrow cone in packets and the others one at a
+//! time; their answers must be those of the brute-force oracle and of the single-ray queries,
+//! bit for bit, whatever mix of rays a packet holds: one narrow cone (walked together),
+//! scattered directions of one octant or mixed signs (one at a time),
 //! zero direction components, origins on split planes, invalid rays, short ranges and a
 //! batch length that is not a multiple of the packet width.
 
@@ -21,8 +22,15 @@ fn signs(r: &Ray) -> u32 {
 }
 
 /// Each ray followed by `k` siblings: same direction signs (zero components kept, with
-/// their sign), origins and directions jittered, some with their own range.
-fn with_siblings(rng: &mut rand::rngs::StdRng, rays: &[Ray], k: usize, jitter: f32) -> Vec<Ray> {
+/// their sign), origins jittered by up to `jitter` and direction components scaled by up to
+/// `1 +- spread`, some with their own range.
+fn with_siblings(
+    rng: &mut rand::rngs::StdRng,
+    rays: &[Ray],
+    k: usize,
+    jitter: f32,
+    spread: f32,
+) -> Vec<Ray> {
     let mut out = Vec::new();
     for r in rays {
         out.push(*r);
@@ -34,7 +42,7 @@ fn with_siblings(rng: &mut rand::rngs::StdRng, rays: &[Ray], k: usize, jitter: f
                     o[a] += rng.random_range(-jitter..jitter);
                 }
                 if d[a] != 0.0 && j % 2 == 1 {
-                    d[a] *= rng.random_range(0.5f32..1.5);
+                    d[a] *= rng.random_range(1.0 - spread..1.0 + spread);
                 }
             }
             let mut s = Ray::new(o, d);
@@ -84,13 +92,14 @@ fn batches_match_brute_force_on_random_scenes() {
             b.union(sahkd::geometry::triangle_bounds(t))
         });
         let base = random_rays(&mut rng, &bounds, 300);
-        let mut rays = with_siblings(&mut rng, &base, 3, 0.05);
+        let mut rays = with_siblings(&mut rng, &base, 3, 0.05, 0.5);
         // Invalid rays inside packets, and a tail shorter than a packet.
         rays[5].direction = Vec3::splat(0.0);
         rays[9].origin[1] = f32::NAN;
         rays[13] = rays[13].with_range(1.0, 0.5);
         rays.push(base[0]);
         rays.push(base[1]);
+        let narrow = with_siblings(&mut rng, &base, 7, 0.02, 0.01);
         for options in [
             BuildOptions::default(),
             all_variants()[all_variants().len() / 2],
@@ -102,6 +111,9 @@ fn batches_match_brute_force_on_random_scenes() {
             let mut sorted = rays.clone();
             sorted.sort_by_key(signs);
             check_batches(&tree, &sorted, true)
+                .unwrap_or_else(|e| panic!("{} on {n} triangles: {e}", describe(&options)));
+            // Packets of eight in a narrow cone: walked together over the kd nodes.
+            check_batches(&tree, &narrow, true)
                 .unwrap_or_else(|e| panic!("{} on {n} triangles: {e}", describe(&options)));
         }
     }

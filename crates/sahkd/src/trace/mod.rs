@@ -445,8 +445,10 @@ impl KdTree {
     }
 
     /// Closest hits of many rays on every core of the current rayon pool, each the answer of
-    /// [`intersect`](Self::intersect): neighbouring rays are walked together in packets
-    /// (`trace::packet`), which changes nothing in the results. The result of each ray does
+    /// [`intersect`](Self::intersect): neighbouring rays within a narrow cone (a camera's,
+    /// shadow rays to one light) are walked together in packets over the kd nodes
+    /// (`trace::packet`), the others one at a time over the wide nodes; the way changes
+    /// nothing in the results. The result of each ray does
     /// not depend on the number of threads.
     pub fn intersect_batch(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
         let mut out = vec![None; rays.len()];

@@ -1,26 +1,24 @@
-//! Packets: `N` rays walked down the tree together, for the batch calls.
+//! Packets: `N` rays walked down the kd nodes together, for the batch calls' coherent rays.
 //!
-//! Neighbouring rays of a batch (a camera's pixels in scanline order, the shadow rays of
-//! neighbouring hits) mostly cross the same nodes. Walking them together reads each node once
-//! for the packet, decides the packet's way with one branch instead of one per ray, and the
-//! plane distances of the lanes are computed side by side (the lane loops below are fixed
-//! length, which the compiler turns into SIMD).
+//! Neighbouring camera rays, and shadow rays of neighbouring hits to one light, mostly cross
+//! the same nodes. Walking them together reads each node once for the packet, decides the
+//! packet's way with one branch instead of one per ray, and the plane distances of the lanes
+//! are computed side by side (the lane loops below are fixed length, which the compiler turns
+//! into SIMD). Rays scattered around surfaces share few nodes: the batch calls walk each of
+//! them alone through the wide nodes ([`PACKET_COS`] decides).
 //!
-//! Every lane follows exactly the path and the intervals its single-ray walk ([`KdTree::walk`])
+//! Every lane follows the path and the intervals a walk of its ray alone down the kd nodes
 //! would: a packet needs the same direction signs on every axis, so near and far children are
 //! the same for all lanes; a lane is active in a node only when its own walk reaches the node
 //! (the masks below) and the node starts within its own limit; its interval is cut at the
-//! plane exactly as the single walk cuts it, and its leaves' triangles are tested as the single
-//! walk tests them (`visit_leaf`). The lanes' leaves therefore come in the same
-//! order with the same triangles and limits, and the answers are those of the single-ray
-//! queries, bit for bit.
+//! plane, and its leaves' triangles are tested as every walk tests them (`visit_leaf`).
+//! Every triangle the ray hits in its range is offered to it, with the same test, so its
+//! answer is the single-ray walk's bit for bit: the nearest hit, ties to the lower index.
 //!
 //! The batch calls hand out groups of [`GROUP`] neighbouring rays and sort each group by
 //! direction octant before cutting it into packets: camera and shadow rays mostly share one
-//! octant and keep their order, while rays scattered around a surface normal (ambient
-//! occlusion, bounces) would otherwise rarely fill a packet of one octant. What is left of an
-//! octant's run after its full packets goes in one more packet whose spare lanes hold a ray
-//! that hits nothing.
+//! octant and keep their order. What is left of an octant's run after its full packets goes
+//! in one more packet whose spare lanes hold a ray that hits nothing.
 
 use super::{clip_to_box, visit_leaf, Closest, Hit, Ray, ShearedRay};
 use crate::cost::MAX_DEPTH_CAP;
@@ -135,6 +133,25 @@ unsafe fn compare<const N: usize>(
     mask
 }
 
+/// The cosine of the widest angle between two rays' directions that still go in one packet:
+/// 8 degrees. Camera rays of neighbouring pixels and shadow rays to one light stay well within
+/// it and run fastest in packets (one node read and one decision for the packet); rays
+/// scattered around surfaces (ambient occlusion, bounces) rarely do, and each runs faster on
+/// its own through the wide nodes, which take it through fewer nodes (BENCHMARKS.md, "Rays in
+/// packets or one at a time").
+const PACKET_COS: f32 = 0.99;
+
+/// Whether the rays `lanes` of `rays` (one octant) are worth a packet: all within
+/// [`PACKET_COS`] of the first one's direction.
+#[inline(always)]
+fn coherent(rays: &[Ray], lanes: &[u8]) -> bool {
+    let unit = |d: Vec3| d * (1.0 / d.dot(d).sqrt());
+    let first = unit(rays[lanes[0] as usize].direction);
+    lanes[1..]
+        .iter()
+        .all(|&i| unit(rays[i as usize].direction).dot(first) >= PACKET_COS)
+}
+
 /// True when all rays have the same sign bit in each direction component, so one near/far
 /// order serves the packet.
 #[inline(always)]
@@ -144,8 +161,8 @@ pub(super) fn same_signs(rays: &[Ray]) -> bool {
 }
 
 impl KdTree {
-    /// The walk of [`KdTree::walk`] for `N` rays with the same direction signs (see
-    /// [`same_signs`]). `visit(lane, hit, limit)` sees each hit of a lane's ray, may lower
+    /// The front-to-back walk of the kd nodes for `N` rays with the same direction signs
+    /// (see [`same_signs`]). `visit(lane, hit, limit)` sees each hit of a lane's ray, may lower
     /// that lane's limit and returns true to end that lane's walk.
     #[inline(always)]
     pub(super) fn walk_packet<const N: usize>(
@@ -241,8 +258,7 @@ impl KdTree {
                     let sheared = sheared.get_or_insert_with(|| {
                         std::array::from_fn(|i| ShearedRay::with_reach(&rays[i], layout.reach))
                     });
-                    // Lane after lane: each lane sees its hits in the leaf's order, as its
-                    // single-ray walk does.
+                    // Lane after lane: each lane sees its hits in the leaf's order.
                     let mut bits = m;
                     while bits != 0 {
                         let i = bits.trailing_zeros() as usize;
@@ -276,19 +292,19 @@ impl KdTree {
 
     /// Answers of a group of at most [`GROUP`] rays into `out`: the rays are ordered by the
     /// signs of their directions (stable, so coherent rays keep their neighbours) and each
-    /// run of one octant is cut into packets of `W` rays walked by `packet`; the last packet
-    /// of a run fills its spare lanes with a ray that hits nothing (an empty range, so its
-    /// lane is never active). Walking the few rays left over in a packet of their own is
-    /// cheaper than walking them one at a time, even with most lanes idle: the single-ray
-    /// walk took a sixth of dragon's ambient occlusion rays and more than a quarter of their
-    /// time. Every ray gets its single-ray answer whichever packet it is walked in, so the
-    /// grouping changes nothing in the results.
+    /// run of one octant is cut into packets of `W` rays, walked by `packet` where they are
+    /// [`coherent`] (or `packets_only`, for tests), else one at a time by `single`; the last
+    /// packet of a run fills its spare lanes with a ray that hits nothing (an empty range, so
+    /// its lane is never active). Every ray gets its single-ray answer whichever way it is
+    /// walked, so the grouping changes nothing in the results.
     #[inline(always)]
     fn trace_group<const W: usize, T: Copy>(
         &self,
         rays: &[Ray],
         out: &mut [T],
+        packets_only: bool,
         mut packet: impl FnMut(&[Ray; W]) -> [T; W],
+        mut single: impl FnMut(&Ray) -> T,
     ) {
         debug_assert!(rays.len() <= GROUP && rays.len() == out.len());
         // Counting sort of the ray indices by octant.
@@ -309,6 +325,12 @@ impl KdTree {
         for k in 0..8 {
             let run = &order[runs[k]..runs[k + 1]];
             for lanes in run.chunks(W) {
+                if !packets_only && !coherent(rays, lanes) {
+                    for &i in lanes {
+                        out[i as usize] = single(&rays[i as usize]);
+                    }
+                    continue;
+                }
                 let idle = rays[lanes[0] as usize].with_range(1.0, 0.0);
                 let answers = packet(&std::array::from_fn(|j| {
                     lanes.get(j).map_or(idle, |&i| rays[i as usize])
@@ -327,7 +349,7 @@ impl KdTree {
             // SAFETY: the CPU has AVX2 (checked just above).
             return unsafe { self.closest_group_avx2(rays, out) };
         }
-        self.closest_group_of::<WIDTH>(rays, out);
+        self.closest_group_of::<WIDTH>(rays, out, false);
     }
 
     /// Any-hit answers of a group of at most [`GROUP`] rays into `out`.
@@ -337,30 +359,36 @@ impl KdTree {
             // SAFETY: the CPU has AVX2 (checked just above).
             return unsafe { self.any_group_avx2(rays, out) };
         }
-        self.any_group_of::<WIDTH>(rays, out);
+        self.any_group_of::<WIDTH>(rays, out, false);
     }
 
     /// [`Self::closest_group`] with packets of [`WIDE`] rays, compiled for AVX2. Only AVX2 is
-    /// enabled, not FMA: the walk's products and sums stay separate operations, as in the
-    /// single-ray walk, so the answers keep their bits.
+    /// enabled, not FMA: the triangle test's products and sums stay separate operations, as
+    /// in the single-ray walk, so the answers keep their bits.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn closest_group_avx2(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        self.closest_group_of::<WIDE>(rays, out);
+        self.closest_group_of::<WIDE>(rays, out, false);
     }
 
     /// [`Self::any_group`] with packets of [`WIDE`] rays, compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn any_group_avx2(&self, rays: &[Ray], out: &mut [bool]) {
-        self.any_group_of::<WIDE>(rays, out);
+        self.any_group_of::<WIDE>(rays, out, false);
     }
 
     #[inline(always)]
-    fn closest_group_of<const W: usize>(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+    fn closest_group_of<const W: usize>(
+        &self,
+        rays: &[Ray],
+        out: &mut [Option<Hit>],
+        packets_only: bool,
+    ) {
         self.trace_group::<W, _>(
             rays,
             out,
+            packets_only,
             #[inline(always)]
             |packet| {
                 let mut closest: [Closest; W] =
@@ -371,14 +399,16 @@ impl KdTree {
                 });
                 std::array::from_fn(|i| closest[i].best())
             },
+            |ray| self.intersect(ray),
         );
     }
 
     #[inline(always)]
-    fn any_group_of<const W: usize>(&self, rays: &[Ray], out: &mut [bool]) {
+    fn any_group_of<const W: usize>(&self, rays: &[Ray], out: &mut [bool], packets_only: bool) {
         self.trace_group::<W, _>(
             rays,
             out,
+            packets_only,
             #[inline(always)]
             |packet| {
                 let mut found = [false; W];
@@ -388,6 +418,7 @@ impl KdTree {
                 });
                 found
             },
+            |ray| self.occluded(ray),
         );
     }
 }
@@ -455,17 +486,17 @@ mod tests {
         };
         check(
             4,
-            run(&|r, o| tree.closest_group_of::<4>(r, o), &|r, o| {
-                tree.any_group_of::<4>(r, o)
+            run(&|r, o| tree.closest_group_of::<4>(r, o, true), &|r, o| {
+                tree.any_group_of::<4>(r, o, true)
             }),
         );
         check(
             8,
-            run(&|r, o| tree.closest_group_of::<8>(r, o), &|r, o| {
-                tree.any_group_of::<8>(r, o)
+            run(&|r, o| tree.closest_group_of::<8>(r, o, true), &|r, o| {
+                tree.any_group_of::<8>(r, o, true)
             }),
         );
-        // What the batch calls run on this CPU.
+        // What the batch calls run on this CPU: the eye's rays in packets, the others alone.
         check(
             0,
             run(&|r, o| tree.closest_group(r, o), &|r, o| {
