@@ -40,31 +40,35 @@ impl WideNode {
     }
 }
 
-/// Per kd node of the trace layout: its content box (empty when it holds nothing) and, for a
-/// leaf, where its blocks' boxes start in `block_boxes` (one per 4-triangle block, in order).
+/// The content boxes of the trace layout's kd nodes (empty where one holds nothing), kept
+/// only where they are not a union of others: an interior node's in `inner`, a leaf's as its
+/// blocks' boxes in `block_boxes` (one per 4-triangle block, in order), `slot` saying where
+/// for each kd node. They are what the collapse holds beside the layout at its peak, so they
+/// take 4 bytes per kd node and 24 per interior node and per block, rather than a box and an
+/// index for every kd node.
 struct Collapse<'a> {
     kd: &'a [Node],
     layout: &'a TraceLayout,
-    content: Vec<Aabb>,
-    first_block: Vec<u32>,
+    slot: Vec<u32>,
+    inner: Vec<Aabb>,
     block_boxes: Vec<Aabb>,
     nodes: Vec<WideNode>,
     pad: f32,
 }
 
-/// A child of a wide node being made: a kd node, or one block of a kd leaf (its first
-/// triangle in the layout, its count and its box).
+/// A child of a wide node being made, with its box: a kd node, or one block of a kd leaf
+/// (its first triangle in the layout and its count).
 #[derive(Clone, Copy)]
 enum Kid {
-    Kd(u32),
+    Kd(u32, Aabb),
     Block(u32, u32, Aabb),
 }
 
 impl Collapse<'_> {
     fn content_of(&mut self, i: u32, cell: Aabb) -> Aabb {
         let node = self.kd[i as usize];
-        let b = if node.is_leaf() {
-            self.first_block[i as usize] = self.block_boxes.len() as u32;
+        if node.is_leaf() {
+            self.slot[i as usize] = self.block_boxes.len() as u32;
             let words = self.layout.leaf_words(&node);
             let mut leaf = Aabb::EMPTY;
             for block in words.chunks(BLOCK * WORDS) {
@@ -79,16 +83,30 @@ impl Collapse<'_> {
             let (l, r) = cell.split(node.axis(), node.split());
             let a = self.content_of(node.left(), l);
             let c = self.content_of(node.left() + 1, r);
+            self.slot[i as usize] = self.inner.len() as u32;
+            self.inner.push(a.union(c));
             a.union(c)
-        };
-        self.content[i as usize] = b;
-        b
+        }
     }
 
-    fn bounds(&self, kid: &Kid) -> Aabb {
+    /// The boxes of kd leaf `k`'s blocks.
+    fn blocks(&self, k: u32) -> &[Aabb] {
+        let first = self.slot[k as usize] as usize;
+        let count = (self.kd[k as usize].count() as usize).div_ceil(BLOCK);
+        &self.block_boxes[first..first + count]
+    }
+
+    fn content(&self, k: u32) -> Aabb {
+        if self.kd[k as usize].is_leaf() {
+            self.blocks(k).iter().fold(Aabb::EMPTY, |a, b| a.union(*b))
+        } else {
+            self.inner[self.slot[k as usize] as usize]
+        }
+    }
+
+    fn bounds(kid: &Kid) -> Aabb {
         match *kid {
-            Kid::Kd(k) => self.content[k as usize],
-            Kid::Block(_, _, b) => b,
+            Kid::Kd(_, b) | Kid::Block(_, _, b) => b,
         }
     }
 
@@ -96,7 +114,7 @@ impl Collapse<'_> {
     /// more than a block its blocks; 0 where it cannot be opened.
     fn pieces(&self, kid: &Kid) -> usize {
         match *kid {
-            Kid::Kd(k) => {
+            Kid::Kd(k, _) => {
                 let node = &self.kd[k as usize];
                 if !node.is_leaf() {
                     2
@@ -115,10 +133,10 @@ impl Collapse<'_> {
         e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
     }
 
-    /// Makes the wide node of kd node `i`: its children opened, the largest box first, while
-    /// what they open into fits eight; returns the wide node's index.
-    fn make(&mut self, i: u32) -> u32 {
-        let mut kids = vec![Kid::Kd(i)];
+    /// The children of the wide node of kd node `i`: its children opened, the largest box
+    /// first, while what they open into fits eight.
+    fn kids(&self, i: u32) -> Vec<Kid> {
+        let mut kids = vec![Kid::Kd(i, self.content(i))];
         loop {
             let open = (0..kids.len())
                 .filter(|&j| {
@@ -126,18 +144,17 @@ impl Collapse<'_> {
                     p > 0 && kids.len() - 1 + p <= WIDTH
                 })
                 .max_by(|&a, &b| {
-                    Self::area(&self.bounds(&kids[a]))
-                        .total_cmp(&Self::area(&self.bounds(&kids[b])))
+                    Self::area(&Self::bounds(&kids[a]))
+                        .total_cmp(&Self::area(&Self::bounds(&kids[b])))
                 });
             let Some(j) = open else { break };
-            let Kid::Kd(k) = kids.remove(j) else {
+            let Kid::Kd(k, _) = kids.remove(j) else {
                 unreachable!("only kd nodes open")
             };
             let node = self.kd[k as usize];
             if node.is_leaf() {
                 // Its blocks' boxes, made with its content box.
-                let boxes = &self.block_boxes[self.first_block[k as usize] as usize..];
-                for (j, &b) in boxes.iter().take(self.pieces(&Kid::Kd(k))).enumerate() {
+                for (j, &b) in self.blocks(k).iter().enumerate() {
                     let first = (j * BLOCK) as u32;
                     if !b.is_empty() {
                         let count = (node.count() - first).min(BLOCK as u32);
@@ -146,18 +163,37 @@ impl Collapse<'_> {
                 }
             } else {
                 for c in [node.left(), node.left() + 1] {
-                    if !self.content[c as usize].is_empty() {
-                        kids.push(Kid::Kd(c));
+                    let b = self.content(c);
+                    if !b.is_empty() {
+                        kids.push(Kid::Kd(c, b));
                     }
                 }
             }
         }
         debug_assert!(kids.len() <= WIDTH);
+        kids
+    }
+
+    /// How many wide nodes `make(i)` makes.
+    fn count(&self, i: u32) -> usize {
+        1 + self
+            .kids(i)
+            .iter()
+            .map(|kid| match *kid {
+                Kid::Kd(k, _) if !self.kd[k as usize].is_leaf() => self.count(k),
+                _ => 0,
+            })
+            .sum::<usize>()
+    }
+
+    /// Makes the wide node of kd node `i` and those below it; returns its index.
+    fn make(&mut self, i: u32) -> u32 {
+        let kids = self.kids(i);
         let at = self.nodes.len() as u32;
         self.nodes.push(WideNode::empty());
         let mut node = WideNode::empty();
         for (lane, kid) in kids.iter().enumerate() {
-            let b = self.bounds(kid);
+            let b = Self::bounds(kid);
             for a in 0..3 {
                 // Padded by the scene's own margin and by a few roundings of the coordinate:
                 // far from the origin a float32 step dwarfs the scene's margin.
@@ -166,7 +202,7 @@ impl Collapse<'_> {
             }
             (node.child[lane], node.count[lane]) = match *kid {
                 Kid::Block(first, count, _) => (LEAF | first, count),
-                Kid::Kd(k) => {
+                Kid::Kd(k, _) => {
                     let kd = self.kd[k as usize];
                     if kd.is_leaf() {
                         (LEAF | kd.first(), kd.count())
@@ -224,20 +260,27 @@ pub(crate) const WIDEN: f32 = 1.0 / (1 << 20) as f32;
 /// The wide nodes of a trace layout whose kd nodes are `kd` (root first; none for a tree
 /// with nothing to hit).
 pub(crate) fn collapse(kd: &[Node], layout: &TraceLayout) -> Vec<WideNode> {
+    // Every array is sized once: a grown one leaves its old copy resident (a wide node's
+    // alignment rules out growing in place), and the wide nodes are counted before they are
+    // made for that.
+    let (blocks, interior) = kd.iter().fold((0, 0), |(b, i), n| match n.is_leaf() {
+        true => (b + (n.count() as usize).div_ceil(BLOCK), i),
+        false => (b, i + 1),
+    });
     let mut c = Collapse {
         kd,
         layout,
-        content: vec![Aabb::EMPTY; kd.len()],
-        first_block: vec![0; kd.len()],
-        block_boxes: Vec::new(),
+        slot: vec![0; kd.len()],
+        inner: Vec::with_capacity(interior),
+        block_boxes: Vec::with_capacity(blocks),
         nodes: Vec::new(),
         pad: layout.reach * WIDEN,
     };
-    if !kd.is_empty() && !layout.words.is_empty() {
-        c.content_of(0, layout.bounds);
-        if !c.content[0].is_empty() {
-            c.make(0);
-        }
+    if !kd.is_empty() && !layout.words.is_empty() && !c.content_of(0, layout.bounds).is_empty() {
+        let count = c.count(0);
+        c.nodes = Vec::with_capacity(count);
+        c.make(0);
+        debug_assert_eq!(c.nodes.len(), count);
     }
     c.nodes
 }
