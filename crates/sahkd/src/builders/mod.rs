@@ -107,22 +107,8 @@ pub fn build_triangles(
         }
         None => run(triangles, options),
     };
-    give_back_freed_memory();
+    crate::give_back_freed_memory();
     Ok(built)
-}
-
-/// Hands the memory the builder freed back to the system. Its working arrays are many
-/// allocations, per node and per worker, that glibc keeps for reuse once freed, so without
-/// this the process stays as large as the build's peak and whatever comes next (the trace
-/// layout, say) adds to it: `sahkd trace spd:mount:16000000` peaked at 196 bytes per
-/// triangle instead of 151, the tree and the layout. Other allocators return memory on
-/// their own.
-fn give_back_freed_memory() {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: malloc_trim only releases free pages of the allocator's own heaps.
-    unsafe {
-        libc::malloc_trim(0);
-    }
 }
 
 fn run(triangles: Vec<Triangle>, options: &BuildOptions) -> Build {

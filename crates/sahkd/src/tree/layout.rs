@@ -31,6 +31,7 @@
 use crate::geometry::{scene_scale, Aabb, Triangle, Vec3};
 use crate::tree::wide::{collapse, WideNode};
 use crate::tree::{KdTree, Node};
+use rayon::prelude::*;
 
 /// Words per triangle in [`TraceLayout::words`]: 9 corner coordinates and the index.
 pub(crate) const WORDS: usize = 10;
@@ -70,26 +71,20 @@ impl TraceLayout {
         let scale = scene_scale(&tree.bounds);
         let mut own_nodes =
             (!in_trace_order(old, scale)).then(|| vec![Node::leaf(0, 0); old.len().max(1)]);
-        let mut words = Vec::with_capacity(tree.refs().len() * WORDS);
+        // The tree's non-empty leaves in the order their triangles are placed here.
+        let mut leaves = Vec::new();
+        let mut placed = 0u32;
         let mut next = 1u32;
         // (node in the tree, its place here); left children are popped first.
         let mut stack = vec![(0u32, 0u32)];
         while let Some((from, to)) = stack.pop() {
             let node = &old[from as usize];
             let renumbered = if node.is_leaf() {
-                let first = (words.len() / WORDS) as u32;
-                for block in tree.leaf_refs(node).chunks(BLOCK) {
-                    let mut held = [[Vec3::splat(0.0); 3]; BLOCK];
-                    for (corners, &prim) in held.iter_mut().zip(block) {
-                        *corners = tree.triangles()[prim as usize].map(|v| v * scale);
-                    }
-                    let corners = &held[..block.len()];
-                    for row in 0..9 {
-                        words.extend(corners.iter().map(|t| t[row / 3][row % 3].to_bits()));
-                    }
-                    words.extend_from_slice(block);
+                if node.count() > 0 {
+                    leaves.push(*node);
                 }
-                Node::leaf(first, node.count())
+                placed += node.count();
+                Node::leaf(placed - node.count(), node.count())
             } else {
                 let pair = next;
                 next += 2;
@@ -104,17 +99,34 @@ impl TraceLayout {
         if let Some(nodes) = own_nodes.as_mut() {
             nodes.truncate(next as usize);
         }
-        let mut layout = TraceLayout {
+        let placement = Placement {
+            tree,
+            leaves,
+            scale,
+        };
+        let bounds = tree.bounds.scaled(scale);
+        let reach = reach_of(&bounds);
+        // The wide nodes before the words: the boxes the collapse holds while it runs then
+        // take memory that the words take after, instead of adding to the peak.
+        let nodes = own_nodes.as_deref().unwrap_or(old);
+        let wide = collapse(nodes, &placement, bounds, reach);
+        crate::give_back_freed_memory();
+        let mut words = vec![0; placed as usize * WORDS];
+        let size = |leaf: &Node| leaf.count() as usize * WORDS;
+        in_runs(&placement.leaves, size, &mut words, |run, mut out| {
+            for leaf in run {
+                out = placement.write_leaf(leaf, out);
+            }
+        });
+        TraceLayout {
             own_nodes,
             words,
-            bounds: tree.bounds.scaled(scale),
-            reach: reach_of(&tree.bounds.scaled(scale)),
+            bounds,
+            reach,
             scale,
             inv_scale: 1.0 / scale,
-            wide: Vec::new(),
-        };
-        layout.wide = collapse(layout.nodes(tree), &layout);
-        layout
+            wide,
+        }
     }
 
     /// Bytes held by the layout: its words, its own kd nodes and its wide nodes.
@@ -173,6 +185,70 @@ fn in_trace_order(nodes: &[Node], scale: f32) -> bool {
         }
     }
     next as usize == nodes.len()
+}
+
+/// The tree's triangles as the layout places them: its non-empty leaves in the order their
+/// triangles are placed, corners times `scale`. The words and the wide nodes' boxes are both
+/// made from it.
+pub(crate) struct Placement<'a> {
+    pub tree: &'a KdTree,
+    pub leaves: Vec<Node>,
+    pub scale: f32,
+}
+
+impl Placement<'_> {
+    /// Triangle `prim` of the tree, scaled.
+    pub fn corners(&self, prim: u32) -> Triangle {
+        self.tree.triangles()[prim as usize].map(|v| v * self.scale)
+    }
+
+    /// The triangle indices of a leaf of the tree, in its blocks.
+    pub fn blocks<'b>(&'b self, leaf: &Node) -> std::slice::Chunks<'b, u32> {
+        self.tree.leaf_refs(leaf).chunks(BLOCK)
+    }
+
+    /// Writes the triangles of a leaf of the tree in blocks (the module's notes) at the start
+    /// of `out`; returns the rest of it.
+    fn write_leaf<'o>(&self, leaf: &Node, out: &'o mut [u32]) -> &'o mut [u32] {
+        let (mut mine, rest) = out.split_at_mut(leaf.count() as usize * WORDS);
+        for block in self.blocks(leaf) {
+            let k = block.len();
+            let (words, tail) = std::mem::take(&mut mine).split_at_mut(k * WORDS);
+            mine = tail;
+            for (t, &prim) in block.iter().enumerate() {
+                let corners = self.corners(prim);
+                for row in 0..9 {
+                    words[row * k + t] = corners[row / 3][row % 3].to_bits();
+                }
+                words[9 * k + t] = prim;
+            }
+        }
+        rest
+    }
+}
+
+/// Leaves per task of [`in_runs`].
+const LEAVES_PER_RUN: usize = 256;
+
+/// Fills `out` in parallel from `leaves`, each taking `size(leaf)` items of it in order: runs
+/// of leaves are handed to `fill` with their own part of `out`, so what it writes does not
+/// depend on the thread count.
+pub(crate) fn in_runs<L: Sync, T: Send>(
+    leaves: &[L],
+    size: impl Fn(&L) -> usize,
+    out: &mut [T],
+    fill: impl Fn(&[L], &mut [T]) + Sync,
+) {
+    let mut rest = out;
+    let mut tasks = Vec::with_capacity(leaves.len().div_ceil(LEAVES_PER_RUN));
+    for run in leaves.chunks(LEAVES_PER_RUN) {
+        let (part, tail) = std::mem::take(&mut rest).split_at_mut(run.iter().map(&size).sum());
+        rest = tail;
+        tasks.push((run, part));
+    }
+    tasks
+        .into_par_iter()
+        .for_each(|(run, part)| fill(run, part));
 }
 
 /// The triangle index of triangle `i` of a block: the row after the 9 coordinate rows.

@@ -12,9 +12,11 @@
 
 use crate::clip::clipped_bounds;
 use crate::geometry::Aabb;
-use crate::tree::layout::{block_record, TraceLayout, BLOCK, WORDS};
+use crate::tree::layout::{in_runs, Placement, BLOCK};
 use crate::tree::Node;
+use rayon::prelude::*;
 use std::mem::MaybeUninit;
+use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 pub(crate) const WIDTH: usize = 8;
 /// A child that is a leaf: `LEAF | first triangle` in the layout's words.
@@ -41,18 +43,17 @@ impl WideNode {
 }
 
 /// The content boxes of the trace layout's kd nodes (empty where one holds nothing), kept
-/// only where they are not a union of others: an interior node's in `inner`, a leaf's as its
-/// blocks' boxes in `block_boxes` (one per 4-triangle block, in order), `slot` saying where
-/// for each kd node. They are what the collapse holds beside the layout at its peak, so they
-/// take 4 bytes per kd node and 24 per interior node and per block, rather than a box and an
-/// index for every kd node.
+/// only where they are not a union of others: a leaf's as its blocks' boxes in `block_boxes`
+/// (one per 4-triangle block, in order, from `slot[leaf]` on), an interior node's in `inner`
+/// at the index of its pair of children (`(left - 1) / 2`: the layout numbers pairs from 1).
+/// They are what the collapse holds beside the layout at its peak, so they take 4 bytes per kd
+/// node and 24 per interior node and per block, rather than a box and an index for every kd
+/// node. An interior kd node's `slot` counts the wide nodes made from it (`count`).
 struct Collapse<'a> {
     kd: &'a [Node],
-    layout: &'a TraceLayout,
-    slot: Vec<u32>,
+    slot: Vec<AtomicU32>,
     inner: Vec<Aabb>,
     block_boxes: Vec<Aabb>,
-    nodes: Vec<WideNode>,
     pad: f32,
 }
 
@@ -64,43 +65,84 @@ enum Kid {
     Block(u32, u32, Aabb),
 }
 
-impl Collapse<'_> {
-    fn content_of(&mut self, i: u32, cell: Aabb) -> Aabb {
-        let node = self.kd[i as usize];
-        if node.is_leaf() {
-            self.slot[i as usize] = self.block_boxes.len() as u32;
-            let words = self.layout.leaf_words(&node);
-            let mut leaf = Aabb::EMPTY;
-            for block in words.chunks(BLOCK * WORDS) {
-                let b = (0..block.len() / WORDS).fold(Aabb::EMPTY, |b, t| {
-                    b.union(clipped_bounds(&block_record(block, t).corners, &cell))
-                });
-                self.block_boxes.push(b);
-                leaf = leaf.union(b);
+impl<'a> Collapse<'a> {
+    fn new(kd: &'a [Node], placement: &Placement, bounds: Aabb, reach: f32) -> Collapse<'a> {
+        let mut c = Collapse {
+            kd,
+            slot: std::iter::repeat_with(|| AtomicU32::new(0))
+                .take(kd.len())
+                .collect(),
+            inner: Vec::new(),
+            block_boxes: Vec::new(),
+            pad: reach * WIDEN,
+        };
+        c.clip_leaves(placement, bounds);
+        c.inner = vec![Aabb::EMPTY; kd.len() / 2];
+        // Children before parents: the layout numbers a node's children after it.
+        for i in (0..kd.len()).rev() {
+            let node = kd[i];
+            if !node.is_leaf() {
+                debug_assert!(node.left() as usize > i && node.left() % 2 == 1);
+                let b = c.content(node.left()).union(c.content(node.left() + 1));
+                c.inner[node.left() as usize / 2] = b;
             }
-            leaf
-        } else {
-            let (l, r) = cell.split(node.axis(), node.split());
-            let a = self.content_of(node.left(), l);
-            let c = self.content_of(node.left() + 1, r);
-            self.slot[i as usize] = self.inner.len() as u32;
-            self.inner.push(a.union(c));
-            a.union(c)
         }
+        c
+    }
+
+    /// The boxes of every leaf's blocks, clipped to the leaf's cell: the cells found in one
+    /// walk down, the clipping (the collapse's costly part) in parallel over runs of leaves,
+    /// each writing its own part of `block_boxes`, so they are the same on any thread count.
+    fn clip_leaves(&mut self, placement: &Placement, bounds: Aabb) {
+        // The layout's leaves in the order `placement` has the tree's, with their cells.
+        let mut leaves = Vec::with_capacity(placement.leaves.len());
+        let mut blocks = 0;
+        let mut stack = vec![(0u32, bounds)];
+        while let Some((i, cell)) = stack.pop() {
+            let node = self.kd[i as usize];
+            if node.is_leaf() {
+                if node.count() > 0 {
+                    *self.slot[i as usize].get_mut() = blocks as u32;
+                    blocks += (node.count() as usize).div_ceil(BLOCK);
+                    let leaf = placement.leaves[leaves.len()];
+                    debug_assert_eq!(leaf.count(), node.count());
+                    leaves.push((leaf, cell));
+                }
+            } else {
+                let (l, r) = cell.split(node.axis(), node.split());
+                stack.extend([(node.left() + 1, r), (node.left(), l)]);
+            }
+        }
+        let mut boxes = vec![Aabb::EMPTY; blocks];
+        let blocks_of = |(node, _): &(Node, Aabb)| (node.count() as usize).div_ceil(BLOCK);
+        in_runs(&leaves, blocks_of, &mut boxes, |run, out| {
+            let blocks = run.iter().flat_map(|(leaf, cell)| {
+                placement.blocks(leaf).map(|block| {
+                    block.iter().fold(Aabb::EMPTY, |b, &prim| {
+                        b.union(clipped_bounds(&placement.corners(prim), cell))
+                    })
+                })
+            });
+            for (o, b) in out.iter_mut().zip(blocks) {
+                *o = b;
+            }
+        });
+        self.block_boxes = boxes;
     }
 
     /// The boxes of kd leaf `k`'s blocks.
     fn blocks(&self, k: u32) -> &[Aabb] {
-        let first = self.slot[k as usize] as usize;
+        let first = self.slot[k as usize].load(Relaxed) as usize;
         let count = (self.kd[k as usize].count() as usize).div_ceil(BLOCK);
         &self.block_boxes[first..first + count]
     }
 
     fn content(&self, k: u32) -> Aabb {
-        if self.kd[k as usize].is_leaf() {
+        let node = self.kd[k as usize];
+        if node.is_leaf() {
             self.blocks(k).iter().fold(Aabb::EMPTY, |a, b| a.union(*b))
         } else {
-            self.inner[self.slot[k as usize] as usize]
+            self.inner[node.left() as usize / 2]
         }
     }
 
@@ -135,22 +177,28 @@ impl Collapse<'_> {
 
     /// The children of the wide node of kd node `i`: its children opened, the largest box
     /// first, while what they open into fits eight.
-    fn kids(&self, i: u32) -> Vec<Kid> {
-        let mut kids = vec![Kid::Kd(i, self.content(i))];
+    fn kids(&self, i: u32) -> Kids {
+        let mut kids = Kids {
+            kid: [Kid::Kd(i, self.content(i)); WIDTH],
+            len: 1,
+        };
         loop {
-            let open = (0..kids.len())
+            let n = kids.len;
+            let open = (0..n)
                 .filter(|&j| {
-                    let p = self.pieces(&kids[j]);
-                    p > 0 && kids.len() - 1 + p <= WIDTH
+                    let p = self.pieces(&kids.kid[j]);
+                    p > 0 && n - 1 + p <= WIDTH
                 })
                 .max_by(|&a, &b| {
-                    Self::area(&Self::bounds(&kids[a]))
-                        .total_cmp(&Self::area(&Self::bounds(&kids[b])))
+                    Self::area(&Self::bounds(&kids.kid[a]))
+                        .total_cmp(&Self::area(&Self::bounds(&kids.kid[b])))
                 });
             let Some(j) = open else { break };
-            let Kid::Kd(k, _) = kids.remove(j) else {
+            let Kid::Kd(k, _) = kids.kid[j] else {
                 unreachable!("only kd nodes open")
             };
+            kids.kid[j..n].rotate_left(1);
+            kids.len -= 1;
             let node = self.kd[k as usize];
             if node.is_leaf() {
                 // Its blocks' boxes, made with its content box.
@@ -170,29 +218,38 @@ impl Collapse<'_> {
                 }
             }
         }
-        debug_assert!(kids.len() <= WIDTH);
         kids
     }
 
-    /// How many wide nodes `make(i)` makes.
-    fn count(&self, i: u32) -> usize {
-        1 + self
-            .kids(i)
-            .iter()
-            .map(|kid| match *kid {
-                Kid::Kd(k, _) if !self.kd[k as usize].is_leaf() => self.count(k),
-                _ => 0,
-            })
-            .sum::<usize>()
+    /// How many wide nodes `make(i)` makes, noted in `slot[i]` for it; at the top
+    /// `PARALLEL_LEVELS` levels of wide nodes the children are counted in parallel.
+    fn count(&self, i: u32, level: usize) -> u32 {
+        let kids = self.kids(i);
+        let below = |kid: &Kid| match *kid {
+            Kid::Kd(k, _) if !self.kd[k as usize].is_leaf() => self.count(k, level + 1),
+            _ => 0,
+        };
+        let n = 1 + if level < PARALLEL_LEVELS {
+            kids.as_slice().par_iter().map(below).sum::<u32>()
+        } else {
+            kids.as_slice().iter().map(below).sum()
+        };
+        if !self.kd[i as usize].is_leaf() {
+            // A leaf's slot says where its blocks' boxes are (a tree of one leaf).
+            self.slot[i as usize].store(n, Relaxed);
+        }
+        n
     }
 
-    /// Makes the wide node of kd node `i` and those below it; returns its index.
-    fn make(&mut self, i: u32) -> u32 {
-        let kids = self.kids(i);
-        let at = self.nodes.len() as u32;
-        self.nodes.push(WideNode::empty());
-        let mut node = WideNode::empty();
-        for (lane, kid) in kids.iter().enumerate() {
+    /// Writes the wide node of kd node `i`, whose index is `at`, to `out[0]`, and the wide
+    /// nodes below it after it: each child's in lane order, numbered as a depth-first walk
+    /// would number them, so the nodes are the same on any thread count. At the top
+    /// `PARALLEL_LEVELS` levels the children are made in parallel.
+    fn make(&self, i: u32, at: u32, out: &mut [WideNode], level: usize) {
+        let (node, mut rest) = out.split_first_mut().expect("counted");
+        let mut below = Vec::new();
+        let mut next = at + 1;
+        for (lane, kid) in self.kids(i).as_slice().iter().enumerate() {
             let b = Self::bounds(kid);
             for a in 0..3 {
                 // Padded by the scene's own margin and by a few roundings of the coordinate:
@@ -207,15 +264,44 @@ impl Collapse<'_> {
                     if kd.is_leaf() {
                         (LEAF | kd.first(), kd.count())
                     } else {
-                        (self.make(k), 0)
+                        let n = self.slot[k as usize].load(Relaxed);
+                        let (theirs, tail) = std::mem::take(&mut rest).split_at_mut(n as usize);
+                        rest = tail;
+                        below.push((k, next, theirs));
+                        next += n;
+                        (next - n, 0)
                     }
                 }
             };
         }
-        self.nodes[at as usize] = node;
-        at
+        let make = |(k, at, out): (u32, u32, &mut [WideNode])| self.make(k, at, out, level + 1);
+        if level < PARALLEL_LEVELS {
+            below.into_par_iter().for_each(make);
+        } else {
+            below.into_iter().for_each(make);
+        }
     }
 }
+
+/// The children of a wide node being made, in lane order.
+struct Kids {
+    kid: [Kid; WIDTH],
+    len: usize,
+}
+
+impl Kids {
+    fn push(&mut self, kid: Kid) {
+        self.kid[self.len] = kid;
+        self.len += 1;
+    }
+
+    fn as_slice(&self) -> &[Kid] {
+        &self.kid[..self.len]
+    }
+}
+
+/// Levels of wide nodes, from the root, whose children are counted and made in parallel.
+const PARALLEL_LEVELS: usize = 3;
 
 /// The walk's step at a wide node: of the children in `mask` (bit `i` for lane `i`, at
 /// least one), made by `entry`, returns the one to walk next and pushes the others onto
@@ -257,30 +343,110 @@ pub(crate) fn push_children<E: Copy, const SORTED: bool>(
 /// origin's distance from the box.
 pub(crate) const WIDEN: f32 = 1.0 / (1 << 20) as f32;
 
-/// The wide nodes of a trace layout whose kd nodes are `kd` (root first; none for a tree
-/// with nothing to hit).
-pub(crate) fn collapse(kd: &[Node], layout: &TraceLayout) -> Vec<WideNode> {
-    // Every array is sized once: a grown one leaves its old copy resident (a wide node's
-    // alignment rules out growing in place), and the wide nodes are counted before they are
-    // made for that.
-    let (blocks, interior) = kd.iter().fold((0, 0), |(b, i), n| match n.is_leaf() {
-        true => (b + (n.count() as usize).div_ceil(BLOCK), i),
-        false => (b, i + 1),
-    });
-    let mut c = Collapse {
-        kd,
-        layout,
-        slot: vec![0; kd.len()],
-        inner: Vec::with_capacity(interior),
-        block_boxes: Vec::with_capacity(blocks),
-        nodes: Vec::new(),
-        pad: layout.reach * WIDEN,
-    };
-    if !kd.is_empty() && !layout.words.is_empty() && !c.content_of(0, layout.bounds).is_empty() {
-        let count = c.count(0);
-        c.nodes = Vec::with_capacity(count);
-        c.make(0);
-        debug_assert_eq!(c.nodes.len(), count);
+/// The wide nodes of a trace layout whose kd nodes are `kd` and whose triangles are placed
+/// as `placement` says, in a box `bounds` of largest extent `reach` (root first; none for a
+/// tree with nothing to hit).
+pub(crate) fn collapse(
+    kd: &[Node],
+    placement: &Placement,
+    bounds: Aabb,
+    reach: f32,
+) -> Vec<WideNode> {
+    if kd.is_empty() || placement.leaves.is_empty() {
+        return Vec::new();
     }
-    c.nodes
+    let c = Collapse::new(kd, placement, bounds, reach);
+    if c.content(0).is_empty() {
+        return Vec::new();
+    }
+    // Counted first, so that each subtree's nodes have their place before they are made, and
+    // the array is sized once: a grown one leaves its old copy resident (a wide node's
+    // alignment rules out growing in place).
+    let mut nodes = vec![WideNode::empty(); c.count(0, 0) as usize];
+    c.make(0, 0, &mut nodes, 0);
+    nodes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{Triangle, Vec3};
+    use crate::tree::layout::{TraceLayout, WORDS};
+    use crate::{build_triangles, Algorithm, BuildOptions};
+
+    fn layout_on(threads: usize, tree: &crate::KdTree) -> TraceLayout {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| TraceLayout::new(tree))
+    }
+
+    /// The wide nodes are made in parallel: one thread and four give the same nodes, bit for
+    /// bit, and they form a tree: every node reached once from the root, every triangle of the
+    /// layout in at most one leaf lane.
+    #[test]
+    fn wide_nodes_are_the_same_on_any_thread_count_and_form_a_tree() {
+        let mut seed = 7u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let tris: Vec<Triangle> = (0..20_000)
+            .map(|_| {
+                let c = Vec3::new(next() * 100.0, next() * 100.0, next() * 10.0);
+                [
+                    c,
+                    c + Vec3::new(next(), 0.0, next()),
+                    c + Vec3::new(0.0, next(), next()),
+                ]
+            })
+            .collect();
+        for algorithm in [Algorithm::Hybrid, Algorithm::Level] {
+            let options = BuildOptions {
+                algorithm,
+                ..BuildOptions::default()
+            };
+            let tree = build_triangles(tris.clone(), &options).unwrap().tree;
+            let one = layout_on(1, &tree);
+            let four = layout_on(4, &tree);
+            let bits = |l: &TraceLayout| -> Vec<u32> {
+                l.wide
+                    .iter()
+                    .flat_map(|n| {
+                        let b = n.bounds.iter().flatten().map(|f| f.to_bits());
+                        b.chain(n.child).chain(n.count).collect::<Vec<_>>()
+                    })
+                    .collect()
+            };
+            assert!(
+                one.wide.len() > 100,
+                "{algorithm:?}: a tree worth collapsing"
+            );
+            assert_eq!(bits(&one), bits(&four), "{algorithm:?}");
+
+            let mut reached = vec![0u32; one.wide.len()];
+            let mut covered = vec![0u32; one.words.len() / WORDS];
+            let mut stack = vec![0usize];
+            while let Some(i) = stack.pop() {
+                reached[i] += 1;
+                let n = &one.wide[i];
+                for lane in (0..WIDTH).filter(|&l| !n.bounds[0][l].is_nan()) {
+                    if n.child[lane] & LEAF != 0 {
+                        let first = (n.child[lane] & !LEAF) as usize;
+                        for t in &mut covered[first..first + n.count[lane] as usize] {
+                            *t += 1;
+                        }
+                    } else {
+                        stack.push(n.child[lane] as usize);
+                    }
+                }
+            }
+            assert!(reached.iter().all(|&r| r == 1), "{algorithm:?}");
+            assert!(covered.iter().all(|&c| c <= 1), "{algorithm:?}");
+            assert!(covered.iter().filter(|&&c| c == 1).count() * 10 > covered.len() * 9);
+        }
+    }
 }
