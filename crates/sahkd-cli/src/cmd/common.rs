@@ -62,7 +62,8 @@ fn prepare<T>(
     };
 
     let start = Instant::now();
-    built.tree.prepare_trace();
+    // On the pool, like the build and the work: the layout is made in parallel.
+    builder.install(|| built.tree.prepare_trace());
     let layout_ms = start.elapsed().as_secs_f64() * 1e3;
     Ok(Prepared {
         builder,
