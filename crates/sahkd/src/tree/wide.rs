@@ -373,6 +373,8 @@ mod tests {
     use crate::geometry::{Triangle, Vec3};
     use crate::tree::layout::{TraceLayout, WORDS};
     use crate::{build_triangles, Algorithm, BuildOptions};
+    use rand::rngs::StdRng;
+    use rand::{Rng, SeedableRng};
 
     fn layout_on(threads: usize, tree: &crate::KdTree) -> TraceLayout {
         rayon::ThreadPoolBuilder::new()
@@ -387,13 +389,8 @@ mod tests {
     /// layout in at most one leaf lane.
     #[test]
     fn wide_nodes_are_the_same_on_any_thread_count_and_form_a_tree() {
-        let mut seed = 7u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rng = StdRng::seed_from_u64(7);
+        let mut next = move || rng.random::<f32>();
         let tris: Vec<Triangle> = (0..20_000)
             .map(|_| {
                 let c = Vec3::new(next() * 100.0, next() * 100.0, next() * 10.0);
