@@ -46,10 +46,10 @@ pub use tree::{KdTree, Node, TreeStats};
 
 /// Hands memory freed by a step of many allocations back to the system: glibc keeps it for
 /// reuse, so without this the process stays as large as that step's peak and whatever comes
-/// next adds to it. After a build (its working arrays, per node and per worker), `sahkd trace
-/// spd:mount:16000000` peaked at 196 bytes per triangle instead of 151; after the wide nodes
-/// are made (the boxes they are made from), the trace layout's words would add to those boxes
-/// rather than take their place. Other allocators return memory on their own.
+/// next adds to it. Called after a build (its working arrays, per node and per worker) and
+/// after the wide nodes are made (the boxes they are made from), so that the trace layout's
+/// words take the place of what was freed instead of adding to it. Other allocators return
+/// memory on their own.
 pub(crate) fn give_back_freed_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: malloc_trim only releases free pages of the allocator's own heaps.

@@ -46,9 +46,9 @@ impl WideNode {
 /// only where they are not a union of others: a leaf's as its blocks' boxes in `block_boxes`
 /// (one per 4-triangle block, in order, from `slot[leaf]` on), an interior node's in `inner`
 /// at the index of its pair of children (`(left - 1) / 2`: the layout numbers pairs from 1).
-/// They are what the collapse holds beside the layout at its peak, so they take 4 bytes per kd
-/// node and 24 per interior node and per block, rather than a box and an index for every kd
-/// node. An interior kd node's `slot` counts the wide nodes made from it (`count`).
+/// They are what the collapse holds beside the tree and the wide nodes (the layout's words
+/// are made after they are freed), so they take 4 bytes per kd node and 24 per interior node
+/// and per block, rather than a box and an index for every kd node. An interior kd node's `slot` counts the wide nodes made from it (`count`).
 struct Collapse<'a> {
     kd: &'a [Node],
     slot: Vec<AtomicU32>,
