@@ -34,12 +34,13 @@ CANDIDATES = {
     "fast": dict(preset="fast"),
     "balanced": dict(preset="balanced"),
     "quality": dict(preset="quality"),
-    "balanced + clip off": dict(preset="balanced", clip=False),
+    "balanced + clip on": dict(preset="balanced", clip=True),
+    "balanced + clip on + K_T 45": dict(preset="balanced", clip=True, traversal=45.0),
     "balanced + 16 bins": dict(preset="balanced", bins=16),
     "balanced + 64 bins": dict(preset="balanced", bins=64),
     "balanced + all axes": dict(preset="balanced", axes="all"),
-    "balanced + K_T 30": dict(preset="balanced", traversal=30.0),
-    "balanced + K_T 60": dict(preset="balanced", traversal=60.0),
+    "balanced + K_T 45": dict(preset="balanced", traversal=45.0),
+    "balanced + K_T 90": dict(preset="balanced", traversal=90.0),
 }
 
 

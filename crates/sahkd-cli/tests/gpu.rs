@@ -33,12 +33,8 @@ fn build_json(args: &[&str]) -> Option<Value> {
 
 #[test]
 fn gpu_build_gives_the_cpu_tree_and_reports_its_phases() {
-    // The defaults (clipping on), then the paper's clip off with either axes setting.
-    let cases: [&[&str]; 3] = [
-        &[],
-        &["--clip", "off", "--axes", "longest"],
-        &["--clip", "off", "--axes", "all"],
-    ];
+    // The defaults (triangle boxes, longest axis), perfect splits, and all axes.
+    let cases: [&[&str]; 3] = [&[], &["--clip", "on"], &["--clip", "off", "--axes", "all"]];
     for options in cases {
         let common = [&["spd:toys:3000"][..], options].concat();
         let Some(gpu) = build_json(&[&common[..], &["--device", "gpu"]].concat()) else {

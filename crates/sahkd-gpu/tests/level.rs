@@ -90,8 +90,12 @@ fn option_sets() -> Vec<BuildOptions> {
             },
             ..paper
         },
-        // Perfect splits: straddlers clipped to the children (the library's default).
+        // The default, and perfect splits: straddlers clipped to the children.
         BuildOptions::default(),
+        BuildOptions {
+            clip: true,
+            ..BuildOptions::default()
+        },
         BuildOptions::quality(),
         BuildOptions {
             clip: true,
@@ -124,8 +128,9 @@ fn generated_scenes_give_the_cpu_tree() {
     }
 }
 
-/// Every scene with the defaults (clipping on), which is what `sahkd build MESH --device gpu`
-/// does; the smaller ones also without clipping (the paper's setting) and with all axes.
+/// Every scene with perfect splits (`--device gpu --clip on`, the GPU's most work); the
+/// smaller ones also with the defaults (triangle boxes) and the paper's setting, and one with
+/// all axes.
 #[test]
 fn real_meshes_give_the_cpu_tree() {
     let Some(gpu) = common::gpu() else { return };
@@ -143,14 +148,19 @@ fn real_meshes_give_the_cpu_tree() {
             continue;
         };
         let triangles = mesh.corner_triangles();
-        cpu_and_gpu_agree(&gpu, file, &triangles, &BuildOptions::default());
+        let clipped = BuildOptions {
+            clip: true,
+            ..BuildOptions::default()
+        };
+        cpu_and_gpu_agree(&gpu, file, &triangles, &clipped);
         if triangles.len() < 100_000 {
+            cpu_and_gpu_agree(&gpu, file, &triangles, &BuildOptions::default());
             cpu_and_gpu_agree(&gpu, file, &triangles, &paper);
         }
         if file == "dragon_res4.ply" {
             let space_tree = BuildOptions {
                 counting: Counting::SpaceTree,
-                ..BuildOptions::default()
+                ..clipped
             };
             let all = BuildOptions {
                 axes: Axes::All,

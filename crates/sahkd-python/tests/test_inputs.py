@@ -175,9 +175,9 @@ def test_presets_are_the_librarys_and_arguments_beside_them_override():
     assert fast.stats["clip"] is False and fast_clipped.stats["clip"] is True
     assert fast_clipped.stats["preset"] == "fast"
     assert _structure(fast_clipped) != _structure(fast)
-    # fast is balanced with fewer bins, leaves of 2 and K_T 70 (the library's FAST_TRAVERSAL).
-    assert _structure(fast_clipped) == _structure(
-        sahkd.KdTree(v, f, preset="balanced", bins=fast.stats["bins"], leaf_size=2, traversal=70.0)
+    # fast is balanced with fewer bins, leaves of 2 and K_T 120 (the library's FAST_TRAVERSAL).
+    assert _structure(fast) == _structure(
+        sahkd.KdTree(v, f, preset="balanced", bins=fast.stats["bins"], leaf_size=2, traversal=120.0)
     )
 
 

@@ -12,14 +12,15 @@ pub const MAX_DEPTH_CAP: u32 = 60;
 
 /// SAH constants and termination rules.
 ///
-/// The default prices a node step at `K_T = 45` against `K_I = 20` for a triangle, with a
+/// The default prices a node step at `K_T = 60` against `K_I = 20` for a triangle, with a
 /// bonus factor of 0.8 on a split that leaves one side empty. Wald & Havran's 2006 constants
 /// (`K_T = 15`, [`CostModel::wald_havran`]) assume a triangle test costs more than a node
-/// step; this traversal tests a leaf's triangles four at a time, so a triangle costs less
-/// and a node step relatively more. Timed on a quiet machine (BENCHMARKS.md, "The cost
-/// constants"), K_T 45 traced the primary, shadow, AO and bounce rays of dragon and
-/// bunny 5-11 % faster on their geometric mean than 15, Sponza's from 1 % slower to 4 %
-/// faster, from trees with 2.5-4.3x fewer nodes built in a half to two thirds of the time.
+/// step; this traversal tests a leaf's triangles four at a time, and the wide nodes rays walk
+/// open a large leaf into boxed blocks of four, so a triangle costs less and a node step
+/// relatively more. With the default build (`balanced`, BENCHMARKS.md "Choosing `balanced`")
+/// K_T 60 builds in less time than 45, with a third fewer nodes, for rays within a few percent
+/// either way; against 15, 45 already traced dragon's and bunny's rays 5-11 % faster ("The
+/// cost constants").
 ///
 /// The greedy cost of splitting node `V` at `p` is
 /// `lambda * (K_T + K_I * (SA(V_L) * N_L + SA(V_R) * N_R) / SA(V))`, against `K_I * N` for
@@ -46,7 +47,7 @@ pub struct CostModel {
 impl Default for CostModel {
     fn default() -> Self {
         CostModel {
-            traversal: 45.0,
+            traversal: 60.0,
             intersection: 20.0,
             empty_bonus: 0.8,
             leaf_size: 1,

@@ -216,10 +216,11 @@ int main(void) {
         old.size = offsetof(sahkd_build_options, axes);
         old.algorithm = SAHKD_ALGORITHM_SWEEP;
         OK(sahkd_tree_build(mesh, &old, &tree));
-        sahkd_build_options back;
+        sahkd_build_options back, defaults;
         OK(sahkd_tree_options(tree, &back));
-        EXPECT(back.algorithm == SAHKD_ALGORITHM_SWEEP && back.clip == 1 &&
-               back.bins == SAHKD_BINS_DEFAULT);
+        OK(sahkd_build_options_default(&defaults));
+        EXPECT(back.algorithm == SAHKD_ALGORITHM_SWEEP && back.clip == defaults.clip &&
+               back.traversal_cost == defaults.traversal_cost && back.bins == SAHKD_BINS_DEFAULT);
         sahkd_tree_free(tree);
         tree = NULL;
     }

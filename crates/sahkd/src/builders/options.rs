@@ -59,7 +59,9 @@ pub enum Counting {
 pub enum Preset {
     /// The quickest build of a tree that still traces well: few rays per build.
     Fast,
-    /// The default: the least build time plus ray time over the mixed ray sets measured.
+    /// The default: the least build time plus the time of a million rays of a mixed set
+    /// (primary, shadow, AO, bounce) on the meshes measured: triangle boxes, K_T 60, 256
+    /// bins.
     #[default]
     Balanced,
     /// Exact SAH over all three axes with perfect splits: many rays per build.
@@ -78,7 +80,6 @@ impl Preset {
         let options = match self {
             Preset::Balanced => balanced,
             Preset::Fast => BuildOptions {
-                clip: false,
                 bins: Some(FAST_BINS),
                 cost: CostModel {
                     leaf_size: FAST_LEAF_SIZE,
@@ -96,7 +97,6 @@ impl Preset {
             Preset::Paper => BuildOptions {
                 algorithm: Algorithm::Level,
                 axes: Axes::Longest,
-                clip: false,
                 ..balanced
             },
             Preset::Sweep => BuildOptions {
@@ -112,14 +112,14 @@ impl Preset {
 }
 
 /// The `fast` preset's bins: binned down to `BINNED_REFS_PER_BIN * FAST_BINS` references.
-pub const FAST_BINS: u32 = 16;
+pub const FAST_BINS: u32 = 64;
 /// The `fast` preset's leaf size: nodes this small become leaves unpriced.
 pub const FAST_LEAF_SIZE: u32 = 2;
-/// The `fast` preset's `K_T`: a dearer node step gives a shallower tree with fuller leaves.
-/// Against 45 (BENCHMARKS.md, "The fast preset's K_T"): 20 % less build time on bunny and
-/// dragon_res2, 40 % fewer nodes, and rays on bunny and Sponza from 2 % slower (Sponza AO)
-/// to 17 % faster (Sponza shadow).
-pub const FAST_TRAVERSAL: f32 = 70.0;
+/// The `fast` preset's `K_T`: a dearer node step gives a shallower tree with fuller leaves,
+/// which the wide nodes rays walk open into boxed blocks of four. Against `balanced`'s 60
+/// (BENCHMARKS.md, "The fast preset"): half the nodes, 0.69-0.85x the build time, rays
+/// 0.86-1.09x `balanced`'s.
+pub const FAST_TRAVERSAL: f32 = 120.0;
 
 /// Everything that decides a build. Same options and input give the same tree, whatever the
 /// number of threads. Fields missing from serialized options take their defaults, so options
@@ -130,8 +130,10 @@ pub struct BuildOptions {
     pub algorithm: Algorithm,
     pub axes: Axes,
     pub counting: Counting,
-    /// Clip straddling triangles to each child ("perfect splits"); off uses the triangles'
-    /// boxes, as the paper does.
+    /// Clip straddling triangles to each child ("perfect splits"); off (the default) uses
+    /// the triangles' boxes, as the paper does. The wide nodes rays walk hold the triangles
+    /// clipped to their cells either way, so clipping in the build buys rays little for its
+    /// time (BENCHMARKS.md, "Choosing `balanced`").
     pub clip: bool,
     /// Worker threads; `None` uses rayon's global pool (every core).
     pub threads: Option<usize>,
@@ -176,7 +178,7 @@ impl Default for BuildOptions {
             algorithm: Algorithm::default(),
             axes: Axes::default(),
             counting: Counting::default(),
-            clip: true,
+            clip: false,
             threads: None,
             cost: CostModel::default(),
             median_large_node: 64,
