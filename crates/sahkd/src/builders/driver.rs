@@ -237,25 +237,96 @@ pub(crate) fn fork_join<S: Fork>(
 }
 
 /// Writes `top` from slot `slot` on (a placeholder) in the driver's layout, as [`serial`]
-/// would have written it.
+/// would have written it: a split's two children side by side after everything written
+/// before it, then the left child's subtree, then the right's. Each subtree's part of both
+/// arrays is known from its size, so big subtrees are written at once.
 pub(crate) fn lay_out(top: Top, out: &mut BuiltTree, slot: usize) {
-    match top {
-        Top::Leaf(ids) => {
-            out.nodes[slot] = Node::leaf(out.refs.len() as u32, ids.len() as u32);
-            out.refs.extend_from_slice(&ids);
+    let (below, refs) = top.size();
+    let (base, ref_base) = (out.nodes.len(), out.refs.len());
+    out.nodes.resize(base + below, Node::leaf(0, 0));
+    out.refs.resize(ref_base + refs, 0);
+    let (head, tail) = out.nodes.split_at_mut(base);
+    let place = Place {
+        nodes: tail,
+        base,
+        refs: &mut out.refs[ref_base..],
+        ref_base,
+    };
+    place.write(&top, &mut head[slot]);
+}
+
+/// Subtrees of more references than this are written beside each other by [`lay_out`].
+const PARALLEL_LAY_OUT: usize = 4096;
+
+impl Top {
+    /// The nodes the subtree adds below its root, and its references.
+    fn size(&self) -> (usize, usize) {
+        match self {
+            Top::Leaf(ids) => (0, ids.len()),
+            Top::Handed(piece) => (piece.nodes.len() - 1, piece.refs.len()),
+            Top::Split { children, .. } => {
+                let ((ln, lr), (rn, rr)) = (children[0].size(), children[1].size());
+                (2 + ln + rn, lr + rr)
+            }
         }
-        Top::Handed(piece) => stitch::place(out, slot, &piece),
-        Top::Split {
-            axis,
-            pos,
-            children,
-        } => {
-            let left = out.nodes.len();
-            out.nodes[slot] = Node::interior(axis, pos, left as u32);
-            out.nodes.extend([Node::leaf(0, 0); 2]);
-            let [l, r] = *children;
-            lay_out(l, out, left);
-            lay_out(r, out, left + 1);
+    }
+}
+
+/// A subtree's part of the tree's arrays: `nodes` from index `base` on, `refs` from
+/// `ref_base` on.
+struct Place<'a> {
+    nodes: &'a mut [Node],
+    base: usize,
+    refs: &'a mut [u32],
+    ref_base: usize,
+}
+
+impl Place<'_> {
+    /// Writes `top` with its root in `root`.
+    fn write(self, top: &Top, root: &mut Node) {
+        match top {
+            Top::Leaf(ids) => {
+                *root = Node::leaf(self.ref_base as u32, ids.len() as u32);
+                self.refs.copy_from_slice(ids);
+            }
+            Top::Handed(piece) => {
+                stitch::place_nodes(piece, root, self.nodes, self.base, self.ref_base);
+                self.refs.copy_from_slice(&piece.refs);
+            }
+            Top::Split {
+                axis,
+                pos,
+                children,
+            } => {
+                *root = Node::interior(*axis, *pos, self.base as u32);
+                let [l, r] = &**children;
+                let (left_nodes, left_refs) = l.size();
+                let (pair, rest) = self.nodes.split_at_mut(2);
+                let (left_root, right_root) = pair.split_at_mut(1);
+                let (nodes_l, nodes_r) = rest.split_at_mut(left_nodes);
+                let right_refs = self.refs.len() - left_refs;
+                let (refs_l, refs_r) = self.refs.split_at_mut(left_refs);
+                let left = Place {
+                    nodes: nodes_l,
+                    base: self.base + 2,
+                    refs: refs_l,
+                    ref_base: self.ref_base,
+                };
+                let right = Place {
+                    nodes: nodes_r,
+                    base: self.base + 2 + left_nodes,
+                    refs: refs_r,
+                    ref_base: self.ref_base + left_refs,
+                };
+                let write_left = || left.write(l, &mut left_root[0]);
+                let write_right = || right.write(r, &mut right_root[0]);
+                if left_refs.min(right_refs) > PARALLEL_LAY_OUT {
+                    rayon::join(write_left, write_right);
+                } else {
+                    write_left();
+                    write_right();
+                }
+            }
         }
     }
 }

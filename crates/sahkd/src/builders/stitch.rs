@@ -19,11 +19,28 @@ pub(crate) fn place(built: &mut BuiltTree, slot: usize, piece: &Piece) {
 
 /// [`place`] into a tree's two arrays.
 pub(crate) fn place_at(nodes: &mut Vec<Node>, refs: &mut Vec<u32>, slot: usize, piece: &Piece) {
-    let base = nodes.len() as u32;
-    let ref_base = refs.len() as u32;
-    nodes[slot] = relocate(&piece.nodes[0], base, ref_base);
-    nodes.extend(piece.nodes[1..].iter().map(|n| relocate(n, base, ref_base)));
+    let base = nodes.len();
+    nodes.resize(base + piece.nodes.len() - 1, Node::leaf(0, 0));
+    let (head, below) = nodes.split_at_mut(base);
+    place_nodes(piece, &mut head[slot], below, base, refs.len());
     refs.extend_from_slice(&piece.refs);
+}
+
+/// The nodes of `piece` placed: its root into `root`, its other nodes into `below`, which the
+/// tree holds from index `base` on (one node fewer than the piece); its references are to
+/// start at `ref_base`. Writes into slices, so that pieces are placed in parallel.
+pub(crate) fn place_nodes(
+    piece: &Piece,
+    root: &mut Node,
+    below: &mut [Node],
+    base: usize,
+    ref_base: usize,
+) {
+    let (base, ref_base) = (base as u32, ref_base as u32);
+    *root = relocate(&piece.nodes[0], base, ref_base);
+    for (to, n) in below.iter_mut().zip(&piece.nodes[1..]) {
+        *to = relocate(n, base, ref_base);
+    }
 }
 
 /// The tree whose top is `top` (nodes below `first_slot` built there; each slot from

@@ -134,14 +134,7 @@ impl KdTree {
         nodes: Vec<Node>,
         mut refs: Vec<u32>,
     ) -> KdTree {
-        for n in &nodes {
-            if n.is_leaf() {
-                let (a, b) = (n.first() as usize, n.first() as usize + n.count() as usize);
-                if b <= refs.len() {
-                    refs[a..b].sort_unstable();
-                }
-            }
-        }
+        sort_leaves(&nodes, &mut refs);
         KdTree {
             nodes,
             refs,
@@ -253,4 +246,38 @@ impl KdTree {
     pub fn stats(&self, cost: &crate::CostModel) -> TreeStats {
         stats::compute(self, cost)
     }
+}
+
+/// Sorts each leaf's run of `refs`, the runs of many leaves at once. Builders write every
+/// leaf's references as a run of its own; when runs overlap (no builder writes them), each
+/// leaf's is sorted in turn, in node order; runs reaching past `refs` are left alone.
+fn sort_leaves(nodes: &[Node], refs: &mut [u32]) {
+    use rayon::prelude::*;
+    let mut runs: Vec<(usize, usize)> = nodes
+        .iter()
+        .filter(|n| n.is_leaf() && n.count() > 1)
+        .map(|n| (n.first() as usize, n.count() as usize))
+        .filter(|&(first, count)| first + count <= refs.len())
+        .collect();
+    runs.sort_unstable();
+    if runs.windows(2).any(|w| w[0].0 + w[0].1 > w[1].0) {
+        for n in nodes.iter().filter(|n| n.is_leaf()) {
+            let (a, b) = (n.first() as usize, n.first() as usize + n.count() as usize);
+            if b <= refs.len() {
+                refs[a..b].sort_unstable();
+            }
+        }
+        return;
+    }
+    let mut leaves = Vec::with_capacity(runs.len());
+    let (mut rest, mut at) = (refs, 0);
+    for (first, count) in runs {
+        let (leaf, tail) = std::mem::take(&mut rest)[first - at..].split_at_mut(count);
+        leaves.push(leaf);
+        (rest, at) = (tail, first + count);
+    }
+    leaves
+        .par_iter_mut()
+        .with_min_len(1024)
+        .for_each(|leaf| leaf.sort_unstable());
 }
