@@ -248,19 +248,23 @@ impl KdTree {
     }
 }
 
-/// Sorts each leaf's run of `refs`, the runs of many leaves at once. Builders write every
-/// leaf's references as a run of its own; when runs overlap (no builder writes them), each
-/// leaf's is sorted in turn, in node order; runs reaching past `refs` are left alone.
+/// Sorts each leaf's run of `refs`, the runs of many leaves at once (`layout::in_runs`) when
+/// they tile `refs`, as every builder writes them; otherwise each leaf's in turn, in node
+/// order, runs reaching past `refs` left alone.
 fn sort_leaves(nodes: &[Node], refs: &mut [u32]) {
-    use rayon::prelude::*;
-    let mut runs: Vec<(usize, usize)> = nodes
+    let mut leaves: Vec<Node> = nodes
         .iter()
-        .filter(|n| n.is_leaf() && n.count() > 1)
-        .map(|n| (n.first() as usize, n.count() as usize))
-        .filter(|&(first, count)| first + count <= refs.len())
+        .filter(|n| n.is_leaf() && n.count() > 0)
+        .copied()
         .collect();
-    runs.sort_unstable();
-    if runs.windows(2).any(|w| w[0].0 + w[0].1 > w[1].0) {
+    leaves.sort_unstable_by_key(|n| n.first());
+    let mut end = 0;
+    let tiled = leaves.iter().all(|n| {
+        let next = n.first() as usize == end;
+        end = n.first() as usize + n.count() as usize;
+        next
+    }) && end == refs.len();
+    if !tiled {
         for n in nodes.iter().filter(|n| n.is_leaf()) {
             let (a, b) = (n.first() as usize, n.first() as usize + n.count() as usize);
             if b <= refs.len() {
@@ -269,15 +273,16 @@ fn sort_leaves(nodes: &[Node], refs: &mut [u32]) {
         }
         return;
     }
-    let mut leaves = Vec::with_capacity(runs.len());
-    let (mut rest, mut at) = (refs, 0);
-    for (first, count) in runs {
-        let (leaf, tail) = std::mem::take(&mut rest)[first - at..].split_at_mut(count);
-        leaves.push(leaf);
-        (rest, at) = (tail, first + count);
-    }
-    leaves
-        .par_iter_mut()
-        .with_min_len(1024)
-        .for_each(|leaf| leaf.sort_unstable());
+    layout::in_runs(
+        &leaves,
+        |n| n.count() as usize,
+        refs,
+        |run, mut part| {
+            for n in run {
+                let (leaf, rest) = part.split_at_mut(n.count() as usize);
+                leaf.sort_unstable();
+                part = rest;
+            }
+        },
+    );
 }
