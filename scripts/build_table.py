@@ -4,22 +4,28 @@ Embree 4's BVH build (embreex, its default quality) on the same meshes, 2 and 1 
 one run.
 
     cargo build --release -p sahkd-cli
-    VENV/bin/python scripts/build_table.py [--repeat 5] [--presets LIST] [--baseline OLD_SAHKD] [MESH ...]
+    VENV/bin/python scripts/build_table.py [--repeat 5] [--presets LIST] [--python] [--baseline OLD_SAHKD] [MESH ...]
 
 MESH is a name in ../shared/scenes (or $SAHKD_SCENES); default bunny, sponza_dabrovic, dragon
 and dragon_res2. Every preset is one warm-up build and `--repeat` timed builds of `sahkd build
---preset NAME --json` (`build_ms`, the median reported); one thread means `taskset -c 0` and
-`--threads 1`. `sweep` is serial and is timed at one thread only. Embree is timed by
-scripts/embree_build.py in the same run, from the indexed mesh (needs embreex, and sahkd's Python
-package or trimesh to read it, in the interpreter running this), under `taskset -c 0` for one thread. `--embree3` adds Embree
+--preset NAME --json` (`build_ms`, the median reported), one process per build; one thread
+means `taskset -c 0` and `--threads 1`. `--python` times sahkd instead the way Embree is timed,
+from Python in one process: the indexed mesh read once, one warm-up build, then `--repeat`
+timed calls of the whole `sahkd.KdTree(vertices, faces, preset=NAME)` constructor
+(scripts/sahkd_build.py; needs the sahkd package in the interpreter running this), the
+package's default threads (all the process may run on, so one under `taskset -c 0`). `sweep` is
+serial and is timed at one thread only. Embree is timed by scripts/embree_build.py in the same
+run, from the indexed mesh (needs embreex, and sahkd's Python package or trimesh to read it,
+in the interpreter running this), under `taskset -c 0` for one thread. `--embree3` adds Embree
 3's build at medium quality (its default) and at high quality (spatial splits, the peer of the
 `quality` preset's clipped splits), timed by scripts/embree3_build.cpp (compiled into target/
 on first use; needs Debian's libembree-dev) on the same indexed mesh. `--baseline` adds the
 serial sweep of another sahkd binary (one built at an older commit, say), to compare sweeps at
 identical trees: its rows must give the same nodes, references and SAH cost; `--baseline-kt K`
-times this binary's sweep again at the baseline's K_T for that comparison. Prints one markdown
-table with medians and min-max, the ratio to Embree at the same threads, the build's phases
-of the last 2-thread run, and the load average before and after each mesh.
+times this binary's sweep again at the baseline's K_T for that comparison (these rows go
+through the CLI). Prints one markdown table with medians and min-max, the ratio to Embree at
+the same threads, the build's phases of the last 2-thread run, and the load average before
+and after each mesh.
 """
 
 import argparse
@@ -57,16 +63,25 @@ def pinned(threads):
 
 
 def sahkd(binary, mesh, options, threads, repeat):
+    """One warm-up and `repeat` timed builds, each a fresh `sahkd build` process."""
     cmd = pinned(threads) + [binary, "build", mesh, "--threads", str(threads), "--json", "--quiet"] \
         + list(options)
     run(cmd)
     reports = [json.loads(run(cmd)) for _ in range(repeat)]
     times = [r["build_ms"] for r in reports]
-    last = reports[-1]
+    return summary((statistics.median(times), min(times), max(times)), reports[-1])
+
+
+def sahkd_python(mesh, preset, threads, repeat):
+    """One warm-up and `repeat` timed builds in one Python process (scripts/sahkd_build.py)."""
+    out = json.loads(run(pinned(threads) + [sys.executable, os.path.join(HERE, "sahkd_build.py"), mesh,
+                                            "--preset", preset, "--repeat", str(repeat)]))
+    return summary((out["median"], out["min"], out["max"]), out["stats"])
+
+
+def summary(ms, last):
     return dict(
-        ms=(statistics.median(times), min(times), max(times)),
-        sah=last["sah_cost"], nodes=last["nodes"], refs=last["references"],
-        bytes=last.get("peak_working_bytes_per_triangle"), bins=last.get("bins"),
+        ms=ms, sah=last["sah_cost"], nodes=last["nodes"], refs=last["references"],
         triangles=last["triangles"],
         phases={k: last.get(k, 0.0) for k in ("presort_ms", "binned_ms", "subtrees_ms", "layout_ms")},
     )
@@ -107,10 +122,6 @@ def spread(t):
     return f"{t[0]:.0f} ({t[1]:.0f}-{t[2]:.0f})" if t[0] >= 100 else f"{t[0]:.1f} ({t[1]:.1f}-{t[2]:.1f})"
 
 
-def working(b):
-    return "-" if b is None else f"{b:.0f}"
-
-
 def phases(r):
     p = r["phases"]
     return (f"presort {p['presort_ms']:.0f}, top {p['binned_ms']:.0f}, subtrees {p['subtrees_ms']:.0f}, "
@@ -123,6 +134,9 @@ def main():
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--presets", default=",".join(PRESETS), help="comma-separated preset names")
     p.add_argument("--sahkd", default=os.path.join(ROOT, "target", "release", "sahkd"))
+    p.add_argument("--python", action="store_true",
+                   help="time sahkd's Python constructor in one process, as Embree is timed, "
+                        "instead of one CLI process per build")
     p.add_argument("--embree3", action="store_true",
                    help="add Embree 3's medium and high (spatial-split) builds")
     p.add_argument("--baseline", help="another sahkd binary whose serial sweep is timed beside")
@@ -144,9 +158,11 @@ def main():
                    for q in ("medium", "high")] if e3 else []
         rows = []
         for preset in args.presets.split(","):
-            options = ["--preset", preset]
-            timed = {t: sahkd(args.sahkd, mesh, options, t, args.repeat)
-                     for t in ((1,) if preset in SERIAL else (2, 1))}
+            def timed_at(t):
+                if args.python:
+                    return sahkd_python(mesh, preset, t, args.repeat)
+                return sahkd(args.sahkd, mesh, ["--preset", preset], t, args.repeat)
+            timed = {t: timed_at(t) for t in ((1,) if preset in SERIAL else (2, 1))}
             rows.append((preset, timed))
         if args.baseline:
             for axes in ["longest", "all"]:
