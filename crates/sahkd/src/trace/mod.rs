@@ -39,12 +39,13 @@ use rayon::prelude::*;
 /// Tests a leaf's triangles against one ray and calls `visit(hit, limit)` for each hit with
 /// `t` in `[t_min, *limit]`, in the leaf's order, exactly as testing them one at a time
 /// against the limit of the moment would: a block of the layout at a time against the limit
-/// at the start of the block (`ShearedRay::intersect_block`), each hit checked again against
-/// the limit the hits before it in the leaf may have lowered. A last block of one triangle
-/// takes the one-triangle test. `words` are the leaf's words in the layout. Returns true
+/// at the start of the block (`ShearedRay::intersect_block`), or two whole blocks at once in
+/// the walks compiled for AVX2 (`AVX`: `ShearedRay::intersect_block_pair_avx`), each hit
+/// checked again against the limit the hits before it in the leaf may have lowered. A last
+/// block of one triangle takes the one-triangle test. `words` are the leaf's words in the layout. Returns true
 /// when `visit` ends the walk.
 #[inline(always)]
-fn visit_leaf(
+fn visit_leaf<const AVX: bool>(
     sheared: &ShearedRay,
     words: &[u32],
     t_min: f32,
@@ -52,22 +53,21 @@ fn visit_leaf(
     counters: &mut impl TraceCounters,
     visit: &mut impl FnMut(Hit, &mut f32) -> bool,
 ) -> bool {
-    let mut visit_block = |block: &[u32], limit: &mut f32| {
-        let k = block.len() / layout::WORDS;
-        for _ in 0..k {
-            counters.triangle();
-        }
-        let hits = sheared.intersect_block(block, t_min, *limit);
-        let mut bits = hits.mask;
+    // The hits of `mask` in lane order; lane `i` is triangle `i % BLOCK` of block
+    // `i / BLOCK` of `words` (whole blocks of `BLOCK` each, or one shorter block alone).
+    let mut offer = |words: &[u32], mask: u32, t: &[f32], u: &[f32], v: &[f32], limit: &mut f32| {
+        let size = (words.len() / layout::WORDS).min(layout::BLOCK) * layout::WORDS;
+        let mut bits = mask;
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            if hits.t[i] <= *limit {
+            if t[i] <= *limit {
+                let block = &words[i / layout::BLOCK * size..][..size];
                 let hit = Hit {
-                    t: hits.t[i],
-                    prim: layout::block_prim(block, i),
-                    u: hits.u[i],
-                    v: hits.v[i],
+                    t: t[i],
+                    prim: layout::block_prim(block, i % layout::BLOCK),
+                    u: u[i],
+                    v: v[i],
                 };
                 if visit(hit, limit) {
                     return true;
@@ -76,9 +76,33 @@ fn visit_leaf(
         }
         false
     };
-    let mut blocks = words.chunks_exact(layout::BLOCK * layout::WORDS);
+    let whole = layout::BLOCK * layout::WORDS;
+    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
+    let mut rest = words;
+    // Two whole blocks at a time in AVX lanes where the walk was compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    if AVX {
+        let mut pairs = rest.chunks_exact(2 * whole);
+        for pair in &mut pairs {
+            for _ in 0..2 * layout::BLOCK {
+                counters.triangle();
+            }
+            // SAFETY: `AVX` is set only in the walks compiled for AVX2, which run where the
+            // CPU has it.
+            let hits = unsafe { sheared.intersect_block_pair_avx(pair, t_min, *limit) };
+            if hits.mask != 0 && offer(pair, hits.mask, &hits.t, &hits.u, &hits.v, limit) {
+                return true;
+            }
+        }
+        rest = pairs.remainder();
+    }
+    let mut blocks = rest.chunks_exact(whole);
     for block in &mut blocks {
-        if visit_block(block, limit) {
+        for _ in 0..layout::BLOCK {
+            counters.triangle();
+        }
+        let hits = sheared.intersect_block(block, t_min, *limit);
+        if hits.mask != 0 && offer(block, hits.mask, &hits.t, &hits.u, &hits.v, limit) {
             return true;
         }
     }
@@ -86,7 +110,11 @@ fn visit_leaf(
     if rest.is_empty() {
         false
     } else if rest.len() > layout::WORDS {
-        visit_block(rest, limit)
+        for _ in 0..rest.len() / layout::WORDS {
+            counters.triangle();
+        }
+        let hits = sheared.intersect_block(rest, t_min, *limit);
+        hits.mask != 0 && offer(rest, hits.mask, &hits.t, &hits.u, &hits.v, limit)
     } else {
         counters.triangle();
         let record = layout::block_record(rest, 0);

@@ -264,7 +264,7 @@ impl KdTree {
                         let i = bits.trailing_zeros() as usize;
                         bits &= bits - 1;
                         let mut visit_lane = |hit: Hit, limit: &mut f32| visit(i, hit, limit);
-                        if visit_leaf(
+                        if visit_leaf::<false>(
                             &sheared[i],
                             words,
                             t_min[i],

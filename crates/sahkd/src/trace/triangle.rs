@@ -14,11 +14,12 @@
 //! [`ShearedRay::intersect_block`] tests four triangles against one ray with the same operations in
 //! the same order, one triangle per SSE lane (x86_64's baseline, so no run-time detection), so
 //! each lane's answer is the one-triangle test's, bit for bit; elsewhere it loops over the
-//! one-triangle test.
+//! one-triangle test. [`ShearedRay::intersect_block_pair_avx`] does the same for two whole
+//! blocks in the eight lanes of AVX, for the walks compiled for AVX2.
 
 use super::Ray;
 use crate::geometry::{Triangle, Vec3};
-use crate::tree::layout::{block_record, WORDS};
+use crate::tree::layout::{block_record, BLOCK, WORDS};
 
 /// Per-ray constants of the shear.
 #[derive(Clone, Copy, Debug)]
@@ -191,6 +192,15 @@ pub struct Hits4 {
     pub v: [f32; 4],
 }
 
+/// The answers of [`ShearedRay::intersect_block_pair_avx`], as [`Hits4`]'s for eight lanes.
+#[derive(Clone, Copy, Debug)]
+pub struct Hits8 {
+    pub mask: u32,
+    pub t: [f32; 8],
+    pub u: [f32; 8],
+    pub v: [f32; 8],
+}
+
 impl Hits4 {
     /// Lane `i`'s hit, if its bit is set.
     #[inline(always)]
@@ -318,6 +328,138 @@ impl ShearedRay {
         }
     }
 
+    /// [`intersect_block`](Self::intersect_block) of two whole blocks at once (`pair` holds
+    /// their `2 * BLOCK * WORDS` words), one triangle per AVX lane: lanes 0-3 the first
+    /// block's, 4-7 the second's. The same operations in the same order, so each lane's
+    /// answer is the one-triangle test's, bit for bit.
+    ///
+    /// # Safety
+    /// The CPU must have AVX. Called only from the walk compiled for AVX2, into which it is
+    /// inlined with its intrinsics (written without closures, which would not inherit the
+    /// walk's target features).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub unsafe fn intersect_block_pair_avx(&self, pair: &[u32], t_min: f32, t_max: f32) -> Hits8 {
+        use std::arch::x86_64::*;
+        assert_eq!(pair.len(), 2 * BLOCK * WORDS, "two whole blocks");
+        let p = pair.as_ptr() as *const f32;
+        let second = BLOCK * WORDS;
+        // Row `r` of both blocks: 4 floats at word `4 r` of each, `r <= 8`, inside the pair.
+        macro_rules! row {
+            ($r:expr) => {
+                _mm256_loadu2_m128(p.add(second + $r * BLOCK), p.add($r * BLOCK))
+            };
+        }
+        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
+        let (ox, oy, oz) = (
+            _mm256_set1_ps(self.origin.0[kx]),
+            _mm256_set1_ps(self.origin.0[ky]),
+            _mm256_set1_ps(self.origin.0[kz]),
+        );
+        macro_rules! relative {
+            ($c:expr) => {
+                (
+                    _mm256_sub_ps(row!(3 * $c + kx), ox),
+                    _mm256_sub_ps(row!(3 * $c + ky), oy),
+                    _mm256_sub_ps(row!(3 * $c + kz), oz),
+                )
+            };
+        }
+        let (a_x, a_y, a_z) = relative!(0);
+        let (b_x, b_y, b_z) = relative!(1);
+        let (c_x, c_y, c_z) = relative!(2);
+        let (sx, sy, sz) = (
+            _mm256_set1_ps(self.sx),
+            _mm256_set1_ps(self.sy),
+            _mm256_set1_ps(self.sz),
+        );
+        let ax = _mm256_sub_ps(a_x, _mm256_mul_ps(sx, a_z));
+        let ay = _mm256_sub_ps(a_y, _mm256_mul_ps(sy, a_z));
+        let bx = _mm256_sub_ps(b_x, _mm256_mul_ps(sx, b_z));
+        let by = _mm256_sub_ps(b_y, _mm256_mul_ps(sy, b_z));
+        let cx = _mm256_sub_ps(c_x, _mm256_mul_ps(sx, c_z));
+        let cy = _mm256_sub_ps(c_y, _mm256_mul_ps(sy, c_z));
+        let eu = _mm256_sub_ps(_mm256_mul_ps(cx, by), _mm256_mul_ps(cy, bx));
+        let ev = _mm256_sub_ps(_mm256_mul_ps(ax, cy), _mm256_mul_ps(ay, cx));
+        let ew = _mm256_sub_ps(_mm256_mul_ps(bx, ay), _mm256_mul_ps(by, ax));
+        let zero = _mm256_setzero_ps();
+        // The SSE comparisons' predicates: equal is ordered and quiet, the others ordered.
+        let mut exact = _mm256_movemask_ps(_mm256_or_ps(
+            _mm256_or_ps(
+                _mm256_cmp_ps::<_CMP_EQ_OQ>(eu, zero),
+                _mm256_cmp_ps::<_CMP_EQ_OQ>(ev, zero),
+            ),
+            _mm256_cmp_ps::<_CMP_EQ_OQ>(ew, zero),
+        )) as u32;
+        let negative = _mm256_or_ps(
+            _mm256_or_ps(
+                _mm256_cmp_ps::<_CMP_LT_OS>(eu, zero),
+                _mm256_cmp_ps::<_CMP_LT_OS>(ev, zero),
+            ),
+            _mm256_cmp_ps::<_CMP_LT_OS>(ew, zero),
+        );
+        let positive = _mm256_or_ps(
+            _mm256_or_ps(
+                _mm256_cmp_ps::<_CMP_GT_OS>(eu, zero),
+                _mm256_cmp_ps::<_CMP_GT_OS>(ev, zero),
+            ),
+            _mm256_cmp_ps::<_CMP_GT_OS>(ew, zero),
+        );
+        let det = _mm256_add_ps(_mm256_add_ps(eu, ev), ew);
+        let az = _mm256_mul_ps(sz, a_z);
+        let bz = _mm256_mul_ps(sz, b_z);
+        let cz = _mm256_mul_ps(sz, c_z);
+        let inv = _mm256_div_ps(_mm256_set1_ps(1.0), det);
+        let t = _mm256_mul_ps(
+            _mm256_add_ps(
+                _mm256_add_ps(_mm256_mul_ps(eu, az), _mm256_mul_ps(ev, bz)),
+                _mm256_mul_ps(ew, cz),
+            ),
+            inv,
+        );
+        let rejected = _mm256_or_ps(
+            _mm256_and_ps(negative, positive),
+            _mm256_cmp_ps::<_CMP_EQ_OQ>(det, zero),
+        );
+        let above_min = _mm256_cmp_ps::<_CMP_GE_OS>(t, _mm256_set1_ps(t_min));
+        let keep = _mm256_andnot_ps(
+            rejected,
+            _mm256_and_ps(
+                above_min,
+                _mm256_cmp_ps::<_CMP_LE_OS>(t, _mm256_set1_ps(t_max)),
+            ),
+        );
+        let short = _mm256_andnot_ps(
+            _mm256_or_ps(rejected, above_min),
+            _mm256_cmp_ps::<_CMP_GE_OS>(t, _mm256_set1_ps(t_min - self.band)),
+        );
+        exact |= _mm256_movemask_ps(short) as u32;
+        let mut hits = Hits8 {
+            mask: _mm256_movemask_ps(keep) as u32 & !exact,
+            t: [0.0; 8],
+            u: [0.0; 8],
+            v: [0.0; 8],
+        };
+        _mm256_storeu_ps(hits.t.as_mut_ptr(), t);
+        _mm256_storeu_ps(hits.u.as_mut_ptr(), _mm256_mul_ps(ev, inv));
+        _mm256_storeu_ps(hits.v.as_mut_ptr(), _mm256_mul_ps(ew, inv));
+        let mut rest = exact;
+        while rest != 0 {
+            let i = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            let block = &pair[i / BLOCK * second..][..second];
+            let tri = block_record(block, i % BLOCK).corners;
+            match self.intersect(&tri, t_min, t_max) {
+                Some(h) => {
+                    hits.mask |= 1 << i;
+                    (hits.t[i], hits.u[i], hits.v[i]) = (h.t, h.u, h.v);
+                }
+                None => hits.mask &= !(1 << i),
+            }
+        }
+        hits
+    }
+
     /// [`intersect`](Self::intersect) of the triangles of a block, one after the other.
     #[cfg(not(target_arch = "x86_64"))]
     #[inline(always)]
@@ -426,8 +568,9 @@ mod tests {
             .is_none());
     }
 
-    /// Each lane of the four-triangle test answers exactly what the one-triangle test
-    /// answers, bit for bit, in blocks of 4, 3 and 2: random triangles, triangles on a small integer grid (rays through
+    /// Each lane of the four-triangle test, and of the eight-triangle test of two whole
+    /// blocks, answers exactly what the one-triangle test answers, bit for bit, in blocks of
+    /// 4, 3 and 2: random triangles, triangles on a small integer grid (rays through
     /// their shared edges and vertices, edge functions of exactly zero), degenerate ones,
     /// and limits that cut some hits off.
     #[test]
@@ -495,6 +638,26 @@ mod tests {
                 let bits = |h: Option<TriangleHit>| h.map(|h| [h.t, h.u, h.v].map(f32::to_bits));
                 assert_eq!(bits(four.get(i)), bits(one), "case {case} lane {i}");
                 hits += one.is_some() as u32;
+            }
+            // Two whole blocks at once, the second the same triangles in reverse order.
+            #[cfg(target_arch = "x86_64")]
+            if k == 4 && std::is_x86_feature_detected!("avx") {
+                let mut pair = block.clone();
+                for row in 0..9 {
+                    pair.extend(tris.iter().rev().map(|t| t[row / 3][row % 3].to_bits()));
+                }
+                pair.extend(4..8);
+                // SAFETY: the CPU has AVX (checked above).
+                let eight = unsafe { sheared.intersect_block_pair_avx(&pair, 0.0, t_max) };
+                for lane in 0..8 {
+                    let tri = &tris[if lane < 4 { lane } else { 7 - lane }];
+                    let one = sheared
+                        .intersect(tri, 0.0, t_max)
+                        .map(|h| [h.t, h.u, h.v].map(f32::to_bits));
+                    let got = (eight.mask >> lane & 1 != 0)
+                        .then(|| [eight.t[lane], eight.u[lane], eight.v[lane]].map(f32::to_bits));
+                    assert_eq!(got, one, "case {case}: lane {lane} of a pair");
+                }
             }
         }
         assert!(hits > 12_000, "{hits} hits: a weak test");

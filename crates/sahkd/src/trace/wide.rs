@@ -262,7 +262,7 @@ impl KdTree {
                 let words = &layout.words[first..first + cur.count as usize * WORDS];
                 let sheared =
                     sheared.get_or_insert_with(|| ShearedRay::with_reach(ray, layout.reach));
-                if visit_leaf(sheared, words, ray.t_min, &mut limit, counters, &mut visit) {
+                if visit_leaf::<AVX2>(sheared, words, ray.t_min, &mut limit, counters, &mut visit) {
                     return;
                 }
             }
