@@ -42,8 +42,8 @@ use rayon::prelude::*;
 /// at the start of the block (`ShearedRay::intersect_block`), or two whole blocks at once in
 /// the walks compiled for AVX2 (`AVX`: `ShearedRay::intersect_block_pair_avx`), each hit
 /// checked again against the limit the hits before it in the leaf may have lowered. A last
-/// block of one triangle takes the one-triangle test. `words` are the leaf's words in the layout. Returns true
-/// when `visit` ends the walk.
+/// block of one triangle takes the one-triangle test. `words` are the leaf's words in the
+/// layout. Returns true when `visit` ends the walk.
 #[inline(always)]
 fn visit_leaf<const AVX: bool>(
     sheared: &ShearedRay,
@@ -96,41 +96,27 @@ fn visit_leaf<const AVX: bool>(
         }
         rest = pairs.remainder();
     }
-    let mut blocks = rest.chunks_exact(whole);
-    for block in &mut blocks {
-        for _ in 0..layout::BLOCK {
+    // Whole blocks, then the leaf's last, shorter block (a block of one triangle takes the
+    // one-triangle test).
+    for block in rest.chunks(whole) {
+        let k = block.len() / layout::WORDS;
+        for _ in 0..k {
             counters.triangle();
         }
-        let hits = sheared.intersect_block(block, t_min, *limit);
-        if hits.mask != 0 && offer(block, hits.mask, &hits.t, &hits.u, &hits.v, limit) {
+        let ended = if k > 1 {
+            let hits = sheared.intersect_block(block, t_min, *limit);
+            hits.mask != 0 && offer(block, hits.mask, &hits.t, &hits.u, &hits.v, limit)
+        } else {
+            let corners = layout::block_record(block, 0).corners;
+            sheared
+                .intersect(&corners, t_min, *limit)
+                .is_some_and(|h| offer(block, 1, &[h.t], &[h.u], &[h.v], limit))
+        };
+        if ended {
             return true;
         }
     }
-    let rest = blocks.remainder();
-    if rest.is_empty() {
-        false
-    } else if rest.len() > layout::WORDS {
-        for _ in 0..rest.len() / layout::WORDS {
-            counters.triangle();
-        }
-        let hits = sheared.intersect_block(rest, t_min, *limit);
-        hits.mask != 0 && offer(rest, hits.mask, &hits.t, &hits.u, &hits.v, limit)
-    } else {
-        counters.triangle();
-        let record = layout::block_record(rest, 0);
-        match sheared.intersect(&record.corners, t_min, *limit) {
-            Some(h) => visit(
-                Hit {
-                    t: h.t,
-                    prim: record.prim,
-                    u: h.u,
-                    v: h.v,
-                },
-                limit,
-            ),
-            None => false,
-        }
-    }
+    false
 }
 
 /// The hit `hit` of the float32 test (its `t` in a scene scaled by `1 / inv_scale`) as

@@ -19,7 +19,7 @@ use std::mem::MaybeUninit;
 /// Slab distances are widened by `WIDEN` of their size so that no rounding loses a hit.
 /// For `t_min >= 0` the widening is folded into the reciprocals: an entry distance `n >= 0`
 /// times `1 - WIDEN` shrinks as `n - |n| WIDEN` does, and a negative one stays below
-/// `t_min` either way (the same for exits with `1 + WIDEN`), so a node's test is two
+/// `t_min` either way (the same for exits with `1 + WIDEN`), so a node's test is three
 /// operations shorter on the chain every step of the walk waits on. Rays reaching behind
 /// their origin (`t_min < 0`) widen after the product.
 struct Slabs {
