@@ -24,6 +24,7 @@ pub use report::{BuildReport, LevelReport, PhaseTimes};
 use crate::geometry::{scene_scale, triangle_bounds, Aabb, Triangle};
 use crate::mesh::{Mesh, MeshError};
 use crate::tree::{KdTree, Node};
+use rayon::prelude::*;
 use std::fmt;
 use std::time::Instant;
 
@@ -111,6 +112,21 @@ pub fn build_triangles(
     Ok(built)
 }
 
+/// The box of all triangles, from the boxes of fixed chunks joined in order, so that the
+/// result is the same bits on any thread count (`min` and `max` of -0 and 0 depend on the
+/// order).
+fn bounds_of(triangles: &[Triangle]) -> Aabb {
+    const CHUNK: usize = 1 << 14;
+    let chunks: Vec<Aabb> = triangles
+        .par_chunks(CHUNK)
+        .map(|c| {
+            c.iter()
+                .fold(Aabb::EMPTY, |b, t| b.union(triangle_bounds(t)))
+        })
+        .collect();
+    chunks.into_iter().fold(Aabb::EMPTY, Aabb::union)
+}
+
 fn run(triangles: Vec<Triangle>, options: &BuildOptions) -> Build {
     let start = Instant::now();
     if triangles.is_empty() {
@@ -119,9 +135,9 @@ fn run(triangles: Vec<Triangle>, options: &BuildOptions) -> Build {
             report: BuildReport::default(),
         };
     }
-    let bounds = triangles
-        .iter()
-        .fold(Aabb::EMPTY, |b, t| b.union(triangle_bounds(t)));
+    // Every pass over all triangles runs on the workers: on small meshes these passes, and
+    // the page faults of the arrays they fill, are a fair part of a build's serial start.
+    let bounds = bounds_of(&triangles);
     // Scenes too large or too small for float32 products of their coordinates are built
     // scaled by a power of two (exact), and the planes scaled back; others as they are.
     let scale = scene_scale(&bounds);
@@ -129,10 +145,10 @@ fn run(triangles: Vec<Triangle>, options: &BuildOptions) -> Build {
     let build_triangles = if scale == 1.0 {
         &triangles
     } else {
-        scaled = triangles.iter().map(|t| t.map(|v| v * scale)).collect();
+        scaled = triangles.par_iter().map(|t| t.map(|v| v * scale)).collect();
         &scaled
     };
-    let boxes: Vec<Aabb> = build_triangles.iter().map(triangle_bounds).collect();
+    let boxes: Vec<Aabb> = build_triangles.par_iter().map(triangle_bounds).collect();
     let prims = Primitives {
         triangles: build_triangles,
         boxes,

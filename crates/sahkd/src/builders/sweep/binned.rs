@@ -28,6 +28,8 @@ use crate::cost::CostModel;
 use crate::geometry::{Aabb, Triangle};
 use crate::tree::Node;
 use rayon::prelude::*;
+use std::borrow::Cow;
+use std::mem::MaybeUninit;
 use std::sync::atomic::AtomicUsize;
 use std::time::Instant;
 
@@ -48,9 +50,11 @@ const FORK_MIN: usize = 1024;
 
 /// The references a node of the binned part holds: triangle indices (increasing) and the
 /// boxes the sweep would hold for them (clipped to the node on the way down when clipping).
-struct Refs {
+/// The root borrows the primitives' boxes: a copy of them was a serial millisecond of page
+/// faults on a 66k-triangle mesh.
+struct Refs<'a> {
     ids: Vec<u32>,
-    boxes: Vec<Aabb>,
+    boxes: Cow<'a, [Aabb]>,
     bounds: Aabb,
     depth: u32,
 }
@@ -123,7 +127,7 @@ fn run(ctx: &Ctx, prims: &Primitives) -> Option<BuiltTree> {
     let n = prims.triangles.len();
     let root = Refs {
         ids: (0..n as u32).collect(),
-        boxes: prims.boxes.clone(),
+        boxes: Cow::Borrowed(&prims.boxes),
         bounds: prims.bounds,
         depth: 0,
     };
@@ -178,8 +182,8 @@ struct BinnedTop<'a> {
     tally: Tally,
 }
 
-impl SplitSearch for BinnedTop<'_> {
-    type Node = Refs;
+impl<'a> SplitSearch for BinnedTop<'a> {
+    type Node = Refs<'a>;
 
     fn size(node: &Refs) -> u32 {
         node.ids.len() as u32
@@ -208,7 +212,7 @@ impl SplitSearch for BinnedTop<'_> {
         split
     }
 
-    fn partition(&mut self, node: Refs, split: &Split) -> [Refs; 2] {
+    fn partition(&mut self, node: Refs<'a>, split: &Split) -> [Refs<'a>; 2] {
         let start = Instant::now();
         let children = partition(self.ctx, node, split);
         self.tally.binned_ms += start.elapsed().as_secs_f64() * 1e3;
@@ -221,7 +225,11 @@ impl SplitSearch for BinnedTop<'_> {
 
     /// A node at or below the threshold (and, in parallel, at or below `fork_above`): the
     /// exact sweep's subtree, from its events made and sorted here.
-    fn hand_over(&mut self, node: Refs, budget: Budget) -> Result<(Piece, BudgetUse), Refs> {
+    fn hand_over(
+        &mut self,
+        node: Refs<'a>,
+        budget: Budget,
+    ) -> Result<(Piece, BudgetUse), Refs<'a>> {
         let ctx = self.ctx;
         let n = node.ids.len();
         if n > ctx.threshold || (ctx.parallel && n > ctx.fork_above) {
@@ -259,71 +267,164 @@ impl Fork for BinnedTop<'_> {
 }
 
 /// The node's references split between its children by the sweep's rules ([`route`]).
-fn partition(ctx: &Ctx, node: Refs, split: &Split) -> [Refs; 2] {
+fn partition<'a>(ctx: &Ctx, node: Refs<'a>, split: &Split) -> [Refs<'a>; 2] {
     let (left_box, right_box) = node.bounds.split(split.axis, split.pos);
-    // One spare slot each, for the branch-free split below.
-    let child = |count: u32, bounds| Refs {
-        ids: Vec::with_capacity(count as usize + 1),
-        boxes: Vec::with_capacity(count as usize + 1),
+    let (mut left, mut right) = (
+        Part::with_capacity(split.n_left),
+        Part::with_capacity(split.n_right),
+    );
+    if ctx.options.clip {
+        for (&id, b) in node.ids.iter().zip(node.boxes.iter()) {
+            route(ctx, id, b, &node.bounds, split, |side, b| {
+                let part = if side == 0 { &mut left } else { &mut right };
+                part.ids.push(id);
+                part.boxes.push(b);
+            });
+        }
+    } else if ctx.parallel && node.ids.len() > PARALLEL_PARTITION {
+        split_unclipped_in_chunks(&node, split, &mut left, &mut right);
+    } else {
+        let (l, r) = (left.spare(), right.spare());
+        let counts = split_unclipped(&node.ids, &node.boxes, split, l, r);
+        // SAFETY: `split_unclipped` wrote the first `counts` slots of each side.
+        unsafe {
+            left.set_len(counts.0);
+            right.set_len(counts.1);
+        }
+    }
+    debug_assert!(
+        ctx.options.clip
+            || (left.ids.len(), right.ids.len()) == (split.n_left as usize, split.n_right as usize)
+    );
+    let child = |part: Part, bounds| Refs {
+        ids: part.ids,
+        boxes: Cow::Owned(part.boxes),
         bounds,
         depth: node.depth + 1,
     };
-    let mut sides = [
-        child(split.n_left, left_box),
-        child(split.n_right, right_box),
-    ];
-    if ctx.options.clip {
-        for (&id, b) in node.ids.iter().zip(&node.boxes) {
-            route(ctx, id, b, &node.bounds, split, |side, b| {
-                sides[side].ids.push(id);
-                sides[side].boxes.push(b);
-            });
-        }
-    } else {
-        split_unclipped(&node, split, &mut sides);
-    }
-    sides
+    [child(left, left_box), child(right, right_box)]
 }
 
-/// [`partition`] without clipping: every reference goes whole to each side [`route`] sends
-/// it to, so the children hold exactly the split's counts. Each reference is written to both
-/// children's next free slot and each cursor advances only where the reference belongs,
-/// which spends no branch on the side (the sides of a big node's references are not
-/// predictable).
-fn split_unclipped(node: &Refs, split: &Split, sides: &mut [Refs; 2]) {
-    let (axis, pos, planar_left) = (split.axis, split.pos, split.planar_left);
-    let [left, right] = sides;
-    let (mut nl, mut nr) = (0, 0);
-    {
-        let (left_ids, left_boxes) = (
-            left.ids.spare_capacity_mut(),
-            left.boxes.spare_capacity_mut(),
-        );
-        let (right_ids, right_boxes) = (
-            right.ids.spare_capacity_mut(),
-            right.boxes.spare_capacity_mut(),
-        );
-        for (&id, b) in node.ids.iter().zip(&node.boxes) {
-            let (lo, hi) = (b.lo[axis], b.hi[axis]);
-            let in_plane = lo == pos && hi == pos;
-            let to_left = lo < pos || (in_plane && planar_left);
-            let to_right = hi > pos || (in_plane && !planar_left);
-            left_ids[nl].write(id);
-            left_boxes[nl].write(*b);
-            right_ids[nr].write(id);
-            right_boxes[nr].write(*b);
-            nl += to_left as usize;
-            nr += to_right as usize;
+/// Nodes with more references than this are split in chunks on the workers (when building
+/// in parallel): on small meshes the root's split, and the page faults of its children's
+/// arrays, were the longest serial step of a build.
+const PARALLEL_PARTITION: usize = 1 << 14;
+/// References per chunk of a split in chunks.
+const PARTITION_CHUNK: usize = 1 << 12;
+
+/// One child's arrays while a node is split.
+struct Part {
+    ids: Vec<u32>,
+    boxes: Vec<Aabb>,
+}
+
+/// One side's free slots: ids and boxes.
+type Slots<'s> = (&'s mut [MaybeUninit<u32>], &'s mut [MaybeUninit<Aabb>]);
+
+impl Part {
+    fn with_capacity(count: u32) -> Part {
+        Part {
+            ids: Vec::with_capacity(count as usize),
+            boxes: Vec::with_capacity(count as usize),
         }
     }
-    debug_assert_eq!((nl, nr), (split.n_left as usize, split.n_right as usize));
-    // SAFETY: every slot below each cursor was written (a cursor moves past a slot only after
-    // writing it), and the writes were bounds-checked against the spare capacity.
+
+    fn spare(&mut self) -> Slots<'_> {
+        (
+            self.ids.spare_capacity_mut(),
+            self.boxes.spare_capacity_mut(),
+        )
+    }
+
+    /// # Safety
+    /// The first `len` slots of both arrays must have been written.
+    unsafe fn set_len(&mut self, len: usize) {
+        self.ids.set_len(len);
+        self.boxes.set_len(len);
+    }
+}
+
+/// Which children the sweep's rules send a reference with box `b` to, without clipping.
+#[inline(always)]
+fn sides(b: &Aabb, split: &Split) -> (bool, bool) {
+    let (lo, hi) = (b.lo[split.axis], b.hi[split.axis]);
+    let in_plane = lo == split.pos && hi == split.pos;
+    let to_left = lo < split.pos || (in_plane && split.planar_left);
+    let to_right = hi > split.pos || (in_plane && !split.planar_left);
+    (to_left, to_right)
+}
+
+/// [`partition`] without clipping of `ids` and `boxes` into two sides' free slots: every
+/// reference goes whole to each side [`route`] sends it to, so the children hold exactly
+/// the split's counts; returns how many slots of each side were filled. Each reference is
+/// written to both sides' next free slot and each cursor advances only where the reference
+/// belongs, which spends no branch on the side (the sides of a big node's references are
+/// not predictable); the test of a free slot left fails at most once, at a side's end.
+fn split_unclipped(
+    ids: &[u32],
+    boxes: &[Aabb],
+    split: &Split,
+    (left_ids, left_boxes): Slots,
+    (right_ids, right_boxes): Slots,
+) -> (usize, usize) {
+    let (mut nl, mut nr) = (0, 0);
+    for (&id, b) in ids.iter().zip(boxes) {
+        let (to_left, to_right) = sides(b, split);
+        if nl < left_ids.len() && nl < left_boxes.len() {
+            left_ids[nl].write(id);
+            left_boxes[nl].write(*b);
+        }
+        if nr < right_ids.len() && nr < right_boxes.len() {
+            right_ids[nr].write(id);
+            right_boxes[nr].write(*b);
+        }
+        nl += to_left as usize;
+        nr += to_right as usize;
+    }
+    // Only a split whose counts are not its partition's could leave a reference unwritten.
+    assert!(nl <= left_ids.len() && nr <= right_ids.len());
+    (nl, nr)
+}
+
+/// [`split_unclipped`] on the workers: each chunk's count of both sides first, then every
+/// chunk written into its own run of each child's slots, in order, so that the children
+/// are the ones one pass makes.
+fn split_unclipped_in_chunks(node: &Refs, split: &Split, left: &mut Part, right: &mut Part) {
+    let counts: Vec<(usize, usize)> = node
+        .boxes
+        .par_chunks(PARTITION_CHUNK)
+        .map(|chunk| {
+            chunk.iter().fold((0, 0), |(l, r), b| {
+                let (to_left, to_right) = sides(b, split);
+                (l + to_left as usize, r + to_right as usize)
+            })
+        })
+        .collect();
+    let (total_left, total_right) = counts
+        .iter()
+        .fold((0, 0), |(l, r), &(cl, cr)| (l + cl, r + cr));
+    let (mut l, mut r) = (left.spare(), right.spare());
+    let mut runs = Vec::with_capacity(counts.len());
+    for &(cl, cr) in &counts {
+        let (l_ids, rest_ids) = std::mem::take(&mut l.0).split_at_mut(cl);
+        let (l_boxes, rest_boxes) = std::mem::take(&mut l.1).split_at_mut(cl);
+        let (r_ids, rest_r_ids) = std::mem::take(&mut r.0).split_at_mut(cr);
+        let (r_boxes, rest_r_boxes) = std::mem::take(&mut r.1).split_at_mut(cr);
+        runs.push(((l_ids, l_boxes), (r_ids, r_boxes)));
+        l = (rest_ids, rest_boxes);
+        r = (rest_r_ids, rest_r_boxes);
+    }
+    node.ids
+        .par_chunks(PARTITION_CHUNK)
+        .zip(node.boxes.par_chunks(PARTITION_CHUNK))
+        .zip(runs)
+        .for_each(|((ids, boxes), (l, r))| {
+            split_unclipped(ids, boxes, split, l, r);
+        });
+    // SAFETY: each chunk filled its whole runs: a chunk's counts are those of its own pass.
     unsafe {
-        left.ids.set_len(nl);
-        left.boxes.set_len(nl);
-        right.ids.set_len(nr);
-        right.boxes.set_len(nr);
+        left.set_len(total_left);
+        right.set_len(total_right);
     }
 }
 
@@ -340,13 +441,9 @@ fn route(
     split: &Split,
     mut put: impl FnMut(usize, Aabb),
 ) {
-    let (axis, pos) = (split.axis, split.pos);
-    let (lo, hi) = (b.lo[axis], b.hi[axis]);
-    let in_plane = lo == pos && hi == pos;
-    let to_left = lo < pos || (in_plane && split.planar_left);
-    let to_right = hi > pos || (in_plane && !split.planar_left);
+    let (to_left, to_right) = sides(b, split);
     if to_left && to_right && ctx.options.clip {
-        let (l, r) = clipped_halves(&ctx.triangles[id as usize], node, axis, pos);
+        let (l, r) = clipped_halves(&ctx.triangles[id as usize], node, split.axis, split.pos);
         for (side, c) in [(0, l), (1, r)] {
             if !c.is_empty() {
                 put(side, c);
@@ -514,7 +611,7 @@ impl Histograms {
 
 #[cfg(test)]
 mod tests {
-    use super::super::testing::{counts_at, grid_rounds};
+    use super::super::testing::{counts_at, grid_boxes, grid_rounds, Lcg};
     use super::*;
     use crate::geometry::Vec3;
 
@@ -572,6 +669,77 @@ mod tests {
                 (whole.lo, whole.hi, whole.planar),
                 (sum.lo, sum.hi, sum.planar)
             );
+        }
+    }
+
+    /// Splits a node's references in chunks on several workers and in one pass, and checks
+    /// both against the rule applied to each reference directly: lo below the plane (or
+    /// flat in it, planar side left) goes left, hi above it (or flat in it, planar side
+    /// right) goes right, in the node's order.
+    #[test]
+    fn a_split_in_chunks_is_the_split_of_one_pass() {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(3)
+            .build()
+            .unwrap();
+        let mut rng = Lcg(11);
+        for round in 0..12 {
+            // From under one chunk to several, ending mid-chunk.
+            let n = [1, 100, PARTITION_CHUNK - 1, 3 * PARTITION_CHUNK + 17][round % 4];
+            let boxes = grid_boxes(&mut rng, n, 33, 9, 0.125, 4.0);
+            let ids: Vec<u32> = (0..n as u32).map(|i| 3 * i + 1).collect();
+            let node = Refs {
+                ids: ids.clone(),
+                boxes: Cow::Borrowed(&boxes),
+                bounds: Aabb::new(Vec3::splat(0.0), Vec3::splat(4.0)),
+                depth: 0,
+            };
+            let (axis, pos) = (round % 3, 0.125 * (1 + rng.below(31)) as f32);
+            let planar_left = round % 2 == 0;
+            let want = |left: bool| -> (Vec<u32>, Vec<Aabb>) {
+                ids.iter()
+                    .zip(&boxes)
+                    .filter(|(_, b)| {
+                        let flat_in = b.lo[axis] == pos && b.hi[axis] == pos;
+                        if left {
+                            b.lo[axis] < pos || (flat_in && planar_left)
+                        } else {
+                            b.hi[axis] > pos || (flat_in && !planar_left)
+                        }
+                    })
+                    .map(|(&id, b)| (id, *b))
+                    .unzip()
+            };
+            let (want_left, want_right) = (want(true), want(false));
+            let split = Split {
+                axis,
+                pos,
+                cost: 1.0,
+                planar_left,
+                n_left: want_left.0.len() as u32,
+                n_right: want_right.0.len() as u32,
+            };
+            let one_pass = {
+                let mut l = Part::with_capacity(split.n_left);
+                let mut r = Part::with_capacity(split.n_right);
+                let counts = split_unclipped(&ids, &boxes, &split, l.spare(), r.spare());
+                assert_eq!(counts, (want_left.0.len(), want_right.0.len()));
+                // SAFETY: the counts filled were checked just above.
+                unsafe {
+                    l.set_len(counts.0);
+                    r.set_len(counts.1);
+                }
+                [(l.ids, l.boxes), (r.ids, r.boxes)]
+            };
+            let in_chunks = pool.install(|| {
+                let mut l = Part::with_capacity(split.n_left);
+                let mut r = Part::with_capacity(split.n_right);
+                split_unclipped_in_chunks(&node, &split, &mut l, &mut r);
+                [(l.ids, l.boxes), (r.ids, r.boxes)]
+            });
+            let want = [want_left, want_right];
+            assert_eq!(one_pass, want, "round {round}: one pass");
+            assert_eq!(in_chunks, want, "round {round}: in chunks");
         }
     }
 
