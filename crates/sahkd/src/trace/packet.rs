@@ -165,7 +165,7 @@ impl KdTree {
     /// (see [`same_signs`]). `visit(lane, hit, limit)` sees each hit of a lane's ray, may lower
     /// that lane's limit and returns true to end that lane's walk.
     #[inline(always)]
-    pub(super) fn walk_packet<const N: usize>(
+    pub(super) fn walk_packet<const N: usize, const AVX: bool>(
         &self,
         rays: &[Ray; N],
         mut visit: impl FnMut(usize, Hit, &mut f32) -> bool,
@@ -264,7 +264,7 @@ impl KdTree {
                         let i = bits.trailing_zeros() as usize;
                         bits &= bits - 1;
                         let mut visit_lane = |hit: Hit, limit: &mut f32| visit(i, hit, limit);
-                        if visit_leaf::<false>(
+                        if visit_leaf::<AVX>(
                             &sheared[i],
                             words,
                             t_min[i],
@@ -349,7 +349,7 @@ impl KdTree {
             // SAFETY: the CPU has AVX2 (checked just above).
             return unsafe { self.closest_group_avx2(rays, out) };
         }
-        self.closest_group_of::<WIDTH>(rays, out, false);
+        self.closest_group_of::<WIDTH, false>(rays, out, false);
     }
 
     /// Any-hit answers of a group of at most [`GROUP`] rays into `out`.
@@ -359,7 +359,7 @@ impl KdTree {
             // SAFETY: the CPU has AVX2 (checked just above).
             return unsafe { self.any_group_avx2(rays, out) };
         }
-        self.any_group_of::<WIDTH>(rays, out, false);
+        self.any_group_of::<WIDTH, false>(rays, out, false);
     }
 
     /// [`Self::closest_group`] with packets of [`WIDE`] rays, compiled for AVX2. Only AVX2 is
@@ -368,18 +368,32 @@ impl KdTree {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn closest_group_avx2(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
-        self.closest_group_of::<WIDE>(rays, out, false);
+        self.closest_group_of::<WIDE, true>(rays, out, false);
     }
 
     /// [`Self::any_group`] with packets of [`WIDE`] rays, compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn any_group_avx2(&self, rays: &[Ray], out: &mut [bool]) {
-        self.any_group_of::<WIDE>(rays, out, false);
+        self.any_group_of::<WIDE, true>(rays, out, false);
+    }
+
+    /// Every coherent or not ray of a group in packets of [`WIDE`], compiled for AVX2 (tests).
+    #[cfg(all(test, target_arch = "x86_64"))]
+    #[target_feature(enable = "avx2")]
+    unsafe fn closest_packets_avx2(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        self.closest_group_of::<WIDE, true>(rays, out, true);
+    }
+
+    /// Every ray of a group in packets of [`WIDE`], compiled for AVX2 (tests).
+    #[cfg(all(test, target_arch = "x86_64"))]
+    #[target_feature(enable = "avx2")]
+    unsafe fn any_packets_avx2(&self, rays: &[Ray], out: &mut [bool]) {
+        self.any_group_of::<WIDE, true>(rays, out, true);
     }
 
     #[inline(always)]
-    fn closest_group_of<const W: usize>(
+    fn closest_group_of<const W: usize, const AVX: bool>(
         &self,
         rays: &[Ray],
         out: &mut [Option<Hit>],
@@ -393,7 +407,7 @@ impl KdTree {
             |packet| {
                 let mut closest: [Closest; W] =
                     std::array::from_fn(|i| self.closest_of(&packet[i]));
-                self.walk_packet(packet, |i, hit, limit| {
+                self.walk_packet::<W, AVX>(packet, |i, hit, limit| {
                     closest[i].offer(hit, limit);
                     false
                 });
@@ -404,7 +418,12 @@ impl KdTree {
     }
 
     #[inline(always)]
-    fn any_group_of<const W: usize>(&self, rays: &[Ray], out: &mut [bool], packets_only: bool) {
+    fn any_group_of<const W: usize, const AVX: bool>(
+        &self,
+        rays: &[Ray],
+        out: &mut [bool],
+        packets_only: bool,
+    ) {
         self.trace_group::<W, _>(
             rays,
             out,
@@ -412,7 +431,7 @@ impl KdTree {
             #[inline(always)]
             |packet| {
                 let mut found = [false; W];
-                self.walk_packet(packet, |i, _, _| {
+                self.walk_packet::<W, AVX>(packet, |i, _, _| {
                     found[i] = true;
                     true
                 });
@@ -486,16 +505,30 @@ mod tests {
         };
         check(
             4,
-            run(&|r, o| tree.closest_group_of::<4>(r, o, true), &|r, o| {
-                tree.any_group_of::<4>(r, o, true)
-            }),
+            run(
+                &|r, o| tree.closest_group_of::<4, false>(r, o, true),
+                &|r, o| tree.any_group_of::<4, false>(r, o, true),
+            ),
         );
         check(
             8,
-            run(&|r, o| tree.closest_group_of::<8>(r, o, true), &|r, o| {
-                tree.any_group_of::<8>(r, o, true)
-            }),
+            run(
+                &|r, o| tree.closest_group_of::<8, false>(r, o, true),
+                &|r, o| tree.any_group_of::<8, false>(r, o, true),
+            ),
         );
+        // The width the AVX2 instance walks, its leaves tested two blocks at once.
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2() {
+            check(
+                8,
+                // SAFETY: the CPU has AVX2 (checked just above).
+                run(
+                    &|r, o| unsafe { tree.closest_packets_avx2(r, o) },
+                    &|r, o| unsafe { tree.any_packets_avx2(r, o) },
+                ),
+            );
+        }
         // What the batch calls run on this CPU: the eye's rays in packets, the others alone.
         check(
             0,
