@@ -50,8 +50,8 @@ const FORK_MIN: usize = 1024;
 
 /// The references a node of the binned part holds: triangle indices (increasing) and the
 /// boxes the sweep would hold for them (clipped to the node on the way down when clipping).
-/// The root borrows the primitives' boxes: a copy of them was a serial millisecond of page
-/// faults on a 66k-triangle mesh.
+/// The root borrows the primitives' boxes: a copy would be one more pass, and the page
+/// faults of a fresh array, on one worker before any other has work.
 struct Refs<'a> {
     ids: Vec<u32>,
     boxes: Cow<'a, [Aabb]>,
@@ -306,8 +306,8 @@ fn partition<'a>(ctx: &Ctx, node: Refs<'a>, split: &Split) -> [Refs<'a>; 2] {
 }
 
 /// Nodes with more references than this are split in chunks on the workers (when building
-/// in parallel): on small meshes the root's split, and the page faults of its children's
-/// arrays, were the longest serial step of a build.
+/// in parallel): on one worker, the root's split and the page faults of its children's
+/// arrays leave the other workers idle, which on small meshes is a fair part of the build.
 const PARALLEL_PARTITION: usize = 1 << 14;
 /// References per chunk of a split in chunks.
 const PARTITION_CHUNK: usize = 1 << 12;
