@@ -38,7 +38,8 @@ pub(crate) fn build(prims: &Primitives, options: &BuildOptions) -> BuiltTree {
     }
     let total_prims = prims.triangles.len();
     let subtree = Subtree {
-        triangles: prims.triangles,
+        triangles: options.clip.then_some(prims.triangles),
+        n: total_prims as u32,
         bounds: prims.bounds,
         depth: 0,
         max_depth: options.cost.max_depth_for(total_prims),
@@ -97,9 +98,13 @@ pub(crate) fn handed_subtree(
     budget: Budget,
     options: &BuildOptions,
 ) -> (Piece, SubtreeReport) {
-    let local: Vec<Triangle> = node.prims.iter().map(|&p| triangles[p as usize]).collect();
+    // The node's own triangles, gathered only where clipping needs them.
+    let local: Option<Vec<Triangle>> = options
+        .clip
+        .then(|| node.prims.iter().map(|&p| triangles[p as usize]).collect());
     let subtree = Subtree {
-        triangles: &local,
+        triangles: local.as_deref(),
+        n: node.prims.len() as u32,
         bounds: node.bounds,
         depth: node.depth,
         max_depth: options.cost.max_depth_for(triangles.len()),
@@ -109,7 +114,7 @@ pub(crate) fn handed_subtree(
     let report = match node.start {
         Start::Boxes(boxes) => build_subtree(&subtree, boxes, options, &mut nodes, &mut refs),
         Start::Sorted(events) => {
-            let work = Workspace::from_sorted(events, local.len());
+            let work = Workspace::from_sorted(events, node.prims.len());
             grow(&subtree, work, options, &mut nodes, &mut refs)
         }
     };
@@ -121,9 +126,11 @@ pub(crate) fn handed_subtree(
 
 /// A node to build the whole subtree of, with the limits that come from the whole tree.
 struct Subtree<'a> {
-    /// The node's primitives' triangles (for clipping). Primitive `i` here is `triangles[i]`;
-    /// the leaves reference these local indices.
-    triangles: &'a [Triangle],
+    /// The node's primitives' triangles, to clip with (`None` without clipping). Primitive
+    /// `i` here is `triangles[i]`; the leaves reference these local indices.
+    triangles: Option<&'a [Triangle]>,
+    /// How many primitives the node holds.
+    n: u32,
     /// The node's box.
     bounds: Aabb,
     /// The node's depth in the whole tree.
@@ -175,12 +182,12 @@ fn grow(
     let mut sweep = ExactSweep {
         work,
         options,
-        clip: options.clip.then_some(subtree.triangles),
+        clip: subtree.triangles,
     };
     let root = SweepNode {
         bounds: subtree.bounds,
         depth: subtree.depth,
-        n: subtree.triangles.len() as u32,
+        n: subtree.n,
         events: [0; 3],
     };
     let rules = Rules {
