@@ -112,19 +112,21 @@ pub fn build_triangles(
     Ok(built)
 }
 
-/// The box of all triangles, from the boxes of fixed chunks joined in order, so that the
+/// The box of all `boxes`, from the unions of fixed chunks joined in order, so that the
 /// result is the same bits on any thread count (`min` and `max` of -0 and 0 depend on the
 /// order).
-fn bounds_of(triangles: &[Triangle]) -> Aabb {
+fn bounds_of(boxes: &[Aabb]) -> Aabb {
     const CHUNK: usize = 1 << 14;
-    let chunks: Vec<Aabb> = triangles
+    let chunks: Vec<Aabb> = boxes
         .par_chunks(CHUNK)
-        .map(|c| {
-            c.iter()
-                .fold(Aabb::EMPTY, |b, t| b.union(triangle_bounds(t)))
-        })
+        .map(|c| c.iter().fold(Aabb::EMPTY, |b, &x| b.union(x)))
         .collect();
     chunks.into_iter().fold(Aabb::EMPTY, Aabb::union)
+}
+
+/// The triangles' boxes, on the workers.
+fn boxes_of(triangles: &[Triangle]) -> Vec<Aabb> {
+    triangles.par_iter().map(triangle_bounds).collect()
 }
 
 fn run(triangles: Vec<Triangle>, options: &BuildOptions) -> Build {
@@ -137,18 +139,19 @@ fn run(triangles: Vec<Triangle>, options: &BuildOptions) -> Build {
     }
     // Every pass over all triangles runs on the workers: on small meshes these passes, and
     // the page faults of the arrays they fill, are a fair part of a build's serial start.
-    let bounds = bounds_of(&triangles);
+    // The scene box comes from the boxes, which most scenes (those not scaled) build with.
+    let boxes = boxes_of(&triangles);
+    let bounds = bounds_of(&boxes);
     // Scenes too large or too small for float32 products of their coordinates are built
     // scaled by a power of two (exact), and the planes scaled back; others as they are.
     let scale = scene_scale(&bounds);
     let scaled: Vec<Triangle>;
-    let build_triangles = if scale == 1.0 {
-        &triangles
+    let (build_triangles, boxes) = if scale == 1.0 {
+        (&triangles, boxes)
     } else {
         scaled = triangles.par_iter().map(|t| t.map(|v| v * scale)).collect();
-        &scaled
+        (&scaled, boxes_of(&scaled))
     };
-    let boxes: Vec<Aabb> = build_triangles.par_iter().map(triangle_bounds).collect();
     let prims = Primitives {
         triangles: build_triangles,
         boxes,
