@@ -11,6 +11,8 @@ use numpy::prelude::*;
 use numpy::{Element, PyArray1, PyArray2, PyUntypedArray};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use rayon::prelude::*;
+use rayon::ThreadPool;
 use sahkd::{Ray, Ray64, RayPart, Triangle, Vec3};
 
 /// Any numpy array (array-likes go through `numpy.asarray`), in native byte order and aligned.
@@ -91,6 +93,44 @@ fn for_each_row<T: Copy, E>(
         }
     }
     Ok(())
+}
+
+/// Rows per task of the parallel readers below.
+const ROWS_PER_TASK: usize = 4096;
+
+/// `f` of every row of an `(n, 3)` view, in order, computed on the current rayon pool's
+/// workers, or `None` when `ok` refuses a row (the serial readers then name it). The rows are
+/// checked first and mapped after, each worker taking [`ROWS_PER_TASK`] rows at a time in a
+/// plain loop: a task per row cost more than the reads, and so did carrying the refusal
+/// through the map (an `Option` per row).
+fn map_rows<T: Copy + Sync, R: Copy + Default + Send>(
+    view: ArrayView2<'_, T>,
+    ok: impl Fn([T; 3]) -> bool + Sync,
+    f: impl Fn([T; 3]) -> R + Sync,
+) -> Option<Vec<R>> {
+    let n = view.nrows();
+    let flat = view.as_slice();
+    let row = |i: usize| match flat {
+        Some(f) => [f[3 * i], f[3 * i + 1], f[3 * i + 2]],
+        None => [view[[i, 0]], view[[i, 1]], view[[i, 2]]],
+    };
+    let task = |t: usize| t * ROWS_PER_TASK..n.min((t + 1) * ROWS_PER_TASK);
+    let tasks = n.div_ceil(ROWS_PER_TASK);
+    if !(0..tasks)
+        .into_par_iter()
+        .all(|t| task(t).all(|i| ok(row(i))))
+    {
+        return None;
+    }
+    let mut rows = vec![R::default(); n];
+    rows.par_chunks_mut(ROWS_PER_TASK)
+        .enumerate()
+        .for_each(|(t, out)| {
+            for (o, i) in out.iter_mut().zip(task(t)) {
+                *o = f(row(i));
+            }
+        });
+    Some(rows)
 }
 
 /// A float32 or float64 `(n, 3)` array, borrowed read-only.
@@ -182,60 +222,105 @@ macro_rules! index_types {
 }
 index_types!(i8, i16, i32, i64, u8, u16, u32, u64);
 
-fn faces_of<T: Index>(
+/// `then` of the triangles of `vertices` (the array `points` was read from) and the faces
+/// `arr`, read on `pool`'s workers with the interpreter released, in the same call as `then`
+/// (a build): each call wakes the workers and puts the caller to sleep, which on one core
+/// took longer than the reads.
+fn faces_of<T: Index + Sync, R: Send>(
+    vertices: &Bound<'_, PyAny>,
+    points: &Points<'_>,
     arr: &Bound<'_, PyUntypedArray>,
-    vertices: &[[f32; 3]],
-) -> PyResult<Vec<Triangle>> {
+    pool: &ThreadPool,
+    then: impl FnOnce(Vec<Triangle>) -> R + Send,
+) -> PyResult<R> {
     let faces = arr
         .cast::<PyArray2<T>>()
         .map_err(|_| shape_err(arr, "faces", "(F, 3)"))?
         .try_readonly()?;
     let view = faces.as_array();
-    let mut out = Vec::with_capacity(view.nrows());
-    let n = vertices.len() as i128;
-    for_each_row(view, |i, r| -> PyResult<()> {
-        let mut tri = [Vec3::splat(0.0); 3];
-        for (k, &idx) in r.iter().enumerate() {
-            let w = idx.wide();
-            if !(0..n).contains(&w) {
+    let finite = |p: [f32; 3]| p.iter().all(|c| c.is_finite());
+    let (f32s, f64s) = match points {
+        Points::F32(a) => (Some(a.as_array()), None),
+        Points::F64(a) => (None, Some(a.as_array())),
+    };
+    let read = arr.py().detach(|| {
+        pool.install(|| {
+            let single = |p: [f64; 3]| p.map(|c| c as f32);
+            let corners = match (f32s, f64s) {
+                (Some(a), _) => map_rows(a, finite, |p| p),
+                (_, Some(a)) => map_rows(a, |p| finite(single(p)), single),
+                _ => unreachable!("the points are float32 or float64"),
+            };
+            let Some(corners) = corners else {
+                return Err(None::<usize>);
+            };
+            let n = corners.len() as u128;
+            // A negative index, widened, is beyond every count.
+            let ok = |r: [T; 3]| r.iter().all(|k| (k.wide() as u128) < n);
+            let at = |k: T| Vec3(corners[k.wide() as usize]);
+            let triangles = map_rows(view, ok, |r| r.map(at)).ok_or(Some(corners.len()))?;
+            drop(corners);
+            Ok(then(triangles))
+        })
+    });
+    let n = match read {
+        Ok(done) => return Ok(done),
+        // A vertex is not finite: the serial reader names it.
+        Err(None) => {
+            read_points(vertices, "vertices", "(V, 3)")?;
+            unreachable!("a vertex refused by the parallel reader is named by the serial one")
+        }
+        Err(Some(n)) => n as i128,
+    };
+    for_each_row(view, |i, r| {
+        match r.iter().map(|k| k.wide()).find(|w| !(0..n).contains(w)) {
+            None => Ok(()),
+            Some(w) => {
                 let valid = match n {
                     0 => "there are no vertices".to_string(),
                     1 => "the only vertex is 0".to_string(),
                     _ => format!("valid indices are 0 to {}", n - 1),
                 };
-                return Err(PyValueError::new_err(format!(
+                Err(PyValueError::new_err(format!(
                     "faces[{i}] refers to vertex {w}, but there are only {n} vertices ({valid})"
-                )));
+                )))
             }
-            tri[k] = Vec3(vertices[w as usize]);
         }
-        out.push(tri);
-        Ok(())
     })?;
-    Ok(out)
+    unreachable!("a face refused by the parallel reader is named by the serial one")
 }
 
-/// The triangles of an indexed mesh: `(V, 3)` float vertices and `(F, 3)` integer faces.
-pub fn triangles(vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>) -> PyResult<Vec<Triangle>> {
-    let verts = read_points(vertices, "vertices", "(V, 3)")?;
+/// `then` of the triangles of an indexed mesh, `(V, 3)` float vertices and `(F, 3)` integer
+/// faces, gathered on `pool`'s workers; `then` runs there too, with the interpreter released.
+pub fn triangles_then<R: Send>(
+    vertices: &Bound<'_, PyAny>,
+    faces: &Bound<'_, PyAny>,
+    pool: &ThreadPool,
+    then: impl FnOnce(Vec<Triangle>) -> R + Send,
+) -> PyResult<R> {
+    let (points, _) = points(vertices, "vertices", "(V, 3)")?;
     let arr = ndarray(faces, "faces")?;
     check_rows_of_3(&arr, "faces", "(F, 3)")?;
     let dtype = arr.dtype();
-    let tris = match (dtype.kind(), dtype.itemsize()) {
-        (b'i', 1) => faces_of::<i8>(&arr, &verts),
-        (b'i', 2) => faces_of::<i16>(&arr, &verts),
-        (b'i', 4) => faces_of::<i32>(&arr, &verts),
-        (b'i', 8) => faces_of::<i64>(&arr, &verts),
-        (b'u', 1) => faces_of::<u8>(&arr, &verts),
-        (b'u', 2) => faces_of::<u16>(&arr, &verts),
-        (b'u', 4) => faces_of::<u32>(&arr, &verts),
-        (b'u', 8) => faces_of::<u64>(&arr, &verts),
+    macro_rules! read {
+        ($index:ty) => {
+            faces_of::<$index, R>(vertices, &points, &arr, pool, then)
+        };
+    }
+    match (dtype.kind(), dtype.itemsize()) {
+        (b'i', 1) => read!(i8),
+        (b'i', 2) => read!(i16),
+        (b'i', 4) => read!(i32),
+        (b'i', 8) => read!(i64),
+        (b'u', 1) => read!(u8),
+        (b'u', 2) => read!(u16),
+        (b'u', 4) => read!(u32),
+        (b'u', 8) => read!(u64),
         _ => Err(PyTypeError::new_err(format!(
             "faces must be an integer array, got dtype {}",
             dtype_name(&arr)
         ))),
-    }?;
-    Ok(tris)
+    }
 }
 
 /// A ray parameter bound: one value for every ray, or one per ray. float32 and float64

@@ -227,16 +227,16 @@ fn winding_number<'py>(
 
 /// `KdTree(vertices, faces, **options)`: the tree built on the pool the options chose.
 fn build_tree(
-    py: Python<'_>,
+    _py: Python<'_>,
     vertices: &Bound<'_, PyAny>,
     faces: &Bound<'_, PyAny>,
     building: options::Building,
 ) -> PyResult<PyKdTree> {
-    let triangles = arrays::triangles(vertices, faces)?;
     let options::Building { options, pool, run } = building;
-    let built = py
-        .detach(|| pool.install(|| sahkd::build_triangles(triangles, &run)))
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let built = arrays::triangles_then(vertices, faces, &pool, |triangles| {
+        sahkd::build_triangles(triangles, &run)
+    })?
+    .map_err(|e| PyValueError::new_err(e.to_string()))?;
     let meta = Meta::new(options, &built.report, pool.current_num_threads());
     Ok(PyKdTree::from_tree(built.tree, meta))
 }

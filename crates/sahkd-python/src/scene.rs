@@ -144,7 +144,7 @@ impl PyScene {
     /// integer type. Returns its geometry id, which add_instance takes.
     #[pyo3(text_signature = "(self, vertices, faces)")]
     fn add_mesh(&self, vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>) -> PyResult<i64> {
-        let triangles = arrays::triangles(vertices, faces)?;
+        let triangles = arrays::triangles_then(vertices, faces, &*pool_of(None)?, |t| t)?;
         let mut state = self.lock();
         let id = state
             .scene

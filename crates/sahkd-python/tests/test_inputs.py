@@ -47,6 +47,35 @@ def test_bad_meshes_are_refused_clearly(vertices, faces, error, message):
         sahkd.KdTree(vertices, faces)
 
 
+@pytest.mark.parametrize("dtype", [np.int8, np.uint16, np.int32, np.uint32, np.int64, np.uint64])
+@pytest.mark.parametrize("layout", ["c", "fortran", "column slice", "reversed"])
+def test_meshes_of_every_dtype_and_layout_are_read_as_numpy_reads_them(dtype, layout):
+    # The arrays are read on the workers; numpy's own fancy indexing is the oracle, on enough
+    # rows for both workers to take a share, and a bad row near the end is named all the same.
+    rng = np.random.default_rng(5)
+    n = 120 if dtype == np.int8 else 30000
+    vertices = rng.uniform(-1, 1, (n, 3))
+    faces = rng.integers(0, 100, (20000, 3)).astype(dtype)
+    vertices, faces = (np.asfortranarray(vertices), np.asfortranarray(faces)) if layout == "fortran" else (vertices, faces)
+    if layout == "column slice":
+        wide, vwide = np.zeros((len(faces), 5), dtype), np.zeros((len(vertices), 4))
+        wide[:, 1:4], vwide[:, 1:4] = faces, vertices
+        faces, vertices = wide[:, 1:4], vwide[:, 1:4]
+    elif layout == "reversed":
+        faces = np.ascontiguousarray(faces[::-1])[::-1]
+        vertices = np.ascontiguousarray(vertices[::-1])[::-1]
+    for v in (vertices, vertices.astype(np.float32)):
+        tree = sahkd.KdTree(v, faces, threads=2)
+        np.testing.assert_array_equal(tree.triangles, v.astype(np.float32)[faces])
+    bad = faces.copy()
+    bad[-2, 2] = n
+    with pytest.raises(ValueError, match=rf"faces\[19998\] refers to vertex {n}, but there are only {n} vertices"):
+        sahkd.KdTree(vertices, bad, threads=2)
+    for bad in (with_value(vertices, (n - 2, 1), np.nan), with_value(vertices, (n - 2, 1), 1e300)):
+        with pytest.raises(ValueError, match=rf"vertices\[{n - 2}\] = .* is not finite"):
+            sahkd.KdTree(bad, faces, threads=2)
+
+
 @pytest.mark.parametrize(
     "kwargs, error, message",
     [

@@ -50,6 +50,41 @@ fn non_finite_coordinates_are_rejected_naming_the_vertex() {
     }
 }
 
+/// The corners are checked in chunks on the workers: the first bad triangle is named, on any
+/// thread count, whichever chunk it lies in and whatever bad ones follow it.
+#[test]
+fn non_finite_triangles_are_rejected_naming_the_first() {
+    let good: Triangle = [
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+    ];
+    for first in [0, 4095, 4096, 9000] {
+        let mut tris = vec![good; 20_000];
+        for (i, bad) in [
+            (first, f32::NAN),
+            (first + 1, f32::INFINITY),
+            (19_999, f32::NAN),
+        ] {
+            tris[i][i % 3].0[i % 2] = bad;
+        }
+        for threads in [1, 2, 4] {
+            let options = BuildOptions {
+                threads: Some(threads),
+                ..BuildOptions::default()
+            };
+            let msg = build_triangles(tris.clone(), &options)
+                .err()
+                .expect("must be rejected")
+                .to_string();
+            assert!(
+                msg.contains(&format!("triangle {first} has a non-finite corner")),
+                "{msg}"
+            );
+        }
+    }
+}
+
 #[test]
 fn indices_out_of_range_are_rejected_naming_the_face() {
     let mesh = Mesh {

@@ -5,7 +5,8 @@ use serde::Serialize;
 /// Timings and per-level profile of one build.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct BuildReport {
-    /// Wall time of the whole build, pre-sort included.
+    /// Wall time of the whole build: the check of the corners, the pre-sort, the tree and its
+    /// working memory freed (and handed back, on big meshes).
     pub build_ms: f64,
     /// Wall time of the one-off sort of the primitives (0 for builders that do not sort).
     pub presort_ms: f64,

@@ -110,7 +110,7 @@ impl TraceLayout {
         // take memory that the words take after, instead of adding to the peak.
         let nodes = own_nodes.as_deref().unwrap_or(old);
         let wide = collapse(nodes, &placement, bounds, reach);
-        crate::give_back_freed_memory();
+        crate::give_back_freed_memory(tree.triangles.len());
         let mut words = vec![0; placed as usize * WORDS];
         let size = |leaf: &Node| leaf.count() as usize * WORDS;
         in_runs(&placement.leaves, size, &mut words, |run, mut out| {
