@@ -139,6 +139,35 @@ pub enum Points<'py> {
     F64(numpy::PyReadonlyArray2<'py, f64>),
 }
 
+/// A [`Points`]' values, readable from any thread.
+#[derive(Clone, Copy)]
+enum PointsView<'a> {
+    F32(ArrayView2<'a, f32>),
+    F64(ArrayView2<'a, f64>),
+}
+
+impl Points<'_> {
+    fn view(&self) -> PointsView<'_> {
+        match self {
+            Points::F32(a) => PointsView::F32(a.as_array()),
+            Points::F64(a) => PointsView::F64(a.as_array()),
+        }
+    }
+}
+
+impl PointsView<'_> {
+    /// The points in single precision, read on the current pool's workers, or `None` when one
+    /// is not finite in float32 (`visit_points` names it).
+    fn single_rows(self) -> Option<Vec<[f32; 3]>> {
+        let finite = |p: [f32; 3]| p.iter().all(|c| c.is_finite());
+        let single = |p: [f64; 3]| p.map(|c| c as f32);
+        match self {
+            PointsView::F32(a) => map_rows(a, finite, |p| p),
+            PointsView::F64(a) => map_rows(a, |p| finite(single(p)), single),
+        }
+    }
+}
+
 fn points<'py>(obj: &Bound<'py, PyAny>, name: &str, what: &str) -> PyResult<(Points<'py>, usize)> {
     let arr = ndarray(obj, name)?;
     let dtype = arr.dtype();
@@ -222,6 +251,13 @@ macro_rules! index_types {
 }
 index_types!(i8, i16, i32, i64, u8, u16, u32, u64);
 
+/// What the parallel reader refused: a vertex not finite, or a face's index beyond the
+/// vertices (how many there are); the serial readers then name the row.
+enum Refused {
+    Vertex,
+    Face(usize),
+}
+
 /// `then` of the triangles of `vertices` (the array `points` was read from) and the faces
 /// `arr`, read on `pool`'s workers with the interpreter released, in the same call as `then`
 /// (a build): each call wakes the workers and puts the caller to sleep, which on one core
@@ -238,39 +274,28 @@ fn faces_of<T: Index + Sync, R: Send>(
         .map_err(|_| shape_err(arr, "faces", "(F, 3)"))?
         .try_readonly()?;
     let view = faces.as_array();
-    let finite = |p: [f32; 3]| p.iter().all(|c| c.is_finite());
-    let (f32s, f64s) = match points {
-        Points::F32(a) => (Some(a.as_array()), None),
-        Points::F64(a) => (None, Some(a.as_array())),
-    };
+    let points = points.view();
     let read = arr.py().detach(|| {
         pool.install(|| {
-            let single = |p: [f64; 3]| p.map(|c| c as f32);
-            let corners = match (f32s, f64s) {
-                (Some(a), _) => map_rows(a, finite, |p| p),
-                (_, Some(a)) => map_rows(a, |p| finite(single(p)), single),
-                _ => unreachable!("the points are float32 or float64"),
-            };
-            let Some(corners) = corners else {
-                return Err(None::<usize>);
-            };
+            let corners = points.single_rows().ok_or(Refused::Vertex)?;
             let n = corners.len() as u128;
             // A negative index, widened, is beyond every count.
             let ok = |r: [T; 3]| r.iter().all(|k| (k.wide() as u128) < n);
             let at = |k: T| Vec3(corners[k.wide() as usize]);
-            let triangles = map_rows(view, ok, |r| r.map(at)).ok_or(Some(corners.len()))?;
+            let triangles =
+                map_rows(view, ok, |r| r.map(at)).ok_or(Refused::Face(corners.len()))?;
+            // Freed before the build, whose peak it would add to.
             drop(corners);
             Ok(then(triangles))
         })
     });
     let n = match read {
         Ok(done) => return Ok(done),
-        // A vertex is not finite: the serial reader names it.
-        Err(None) => {
+        Err(Refused::Vertex) => {
             read_points(vertices, "vertices", "(V, 3)")?;
             unreachable!("a vertex refused by the parallel reader is named by the serial one")
         }
-        Err(Some(n)) => n as i128,
+        Err(Refused::Face(n)) => n as i128,
     };
     for_each_row(view, |i, r| {
         match r.iter().map(|k| k.wide()).find(|w| !(0..n).contains(w)) {
